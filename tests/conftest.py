@@ -1,0 +1,103 @@
+"""Shared pytest fixtures: ROS isolation and child-process hygiene.
+
+Every test runs in its own ROS domain (ROS_DOMAIN_ID unique to the test, discovery
+limited to localhost), so tests never hear each other or another run on the machine.
+Child processes started through the ``processes`` fixture are killed, with their whole
+process group, when the test ends.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+
+# Pure modules import straight from the source tree, so a module added since the last
+# colcon build is found; the built workspace (scripts/env.sh) adds messages and nodes.
+for _pkg in sorted((ROOT / 'ros2_ws' / 'src').glob('swarm_*')):
+    if (_pkg / 'setup.py').exists() and str(_pkg) not in sys.path:
+        sys.path.insert(0, str(_pkg))
+sys.path.insert(0, str(ROOT / 'scripts'))
+_domain_counter = itertools.count()
+
+
+def _next_domain_id() -> int:
+    """Return a domain id in 1..100 that differs between tests of this session.
+
+    Parallel pytest sessions start from different offsets (their pids), so they
+    rarely collide; a collision still stays on localhost.
+    """
+    return 1 + (os.getpid() * 7 + next(_domain_counter)) % 100
+
+
+@pytest.fixture(autouse=True)
+def ros_isolation(monkeypatch: pytest.MonkeyPatch) -> int:
+    """Give the test its own ROS domain on localhost; return the domain id."""
+    domain = _next_domain_id()
+    monkeypatch.setenv('ROS_DOMAIN_ID', str(domain))
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    monkeypatch.delenv('ROS_STATIC_PEERS', raising=False)
+    return domain
+
+
+class ProcessGroup:
+    """Start child processes in their own process groups and reap them all at the end."""
+
+    def __init__(self) -> None:
+        self.procs: list[subprocess.Popen] = []
+
+    def start(self, args: list[str], **kwargs) -> subprocess.Popen:
+        """Start ``args`` with the test's environment in a new session."""
+        kwargs.setdefault('env', os.environ.copy())
+        kwargs.setdefault('cwd', str(ROOT))
+        proc = subprocess.Popen(args, start_new_session=True, **kwargs)
+        self.procs.append(proc)
+        return proc
+
+    def python(self, *args: str, **kwargs) -> subprocess.Popen:
+        """Start the current interpreter with ``args``."""
+        return self.start([sys.executable, *args], **kwargs)
+
+    def cleanup(self) -> None:
+        """SIGINT, then SIGKILL after a grace period, every group still alive."""
+        for proc in self.procs:
+            if proc.poll() is None:
+                try:
+                    os.killpg(proc.pid, signal.SIGINT)
+                except ProcessLookupError:
+                    pass
+        for proc in self.procs:
+            try:
+                proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                try:
+                    os.killpg(proc.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+                proc.wait(timeout=5)
+
+
+@pytest.fixture
+def processes():
+    """A ProcessGroup whose processes are killed when the test ends."""
+    group = ProcessGroup()
+    try:
+        yield group
+    finally:
+        group.cleanup()
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark tests by layer from their folder, so ``-m unit`` selects the pure layer."""
+    for item in items:
+        path = pathlib.Path(str(item.fspath))
+        for layer in ('unit', 'ros', 'e2e'):
+            if layer in path.parts:
+                item.add_marker(getattr(pytest.mark, layer))
