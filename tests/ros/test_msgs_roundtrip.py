@@ -11,6 +11,7 @@ import pytest
 rclpy = pytest.importorskip('rclpy')
 
 from msg_fill import as_plain, fill  # noqa: E402
+
 import swarm_msgs.msg  # noqa: E402
 from swarm_msgs.msg import FormationShape  # noqa: E402
 from swarm_msgs.srv import SetShape  # noqa: E402
