@@ -103,11 +103,19 @@ if [ ! -f "$WS/install/setup.bash" ] || [ "$(cat "$STAMP_WS" 2>/dev/null)" != "$
       export CMAKE_PREFIX_PATH="$VENV"
     fi
     cd "$WS"
-    if ! colcon build --symlink-install \
+    build() {
+      colcon build --symlink-install \
         --cmake-args -DPython3_EXECUTABLE="$VENV/bin/python" -DBUILD_TESTING=OFF \
-        >"$WS/colcon.log" 2>&1; then
-      tail -n 30 "$WS/colcon.log" >&2
-      die "colcon build failed; the full log is $WS/colcon.log"
+        >"$WS/colcon.log" 2>&1
+    }
+    if ! build; then
+      # Stale symlinks of removed files break symlink installs: rebuild from clean once.
+      say "incremental build failed; rebuilding the workspace from clean"
+      rm -rf "$WS/build" "$WS/install"
+      if ! build; then
+        tail -n 30 "$WS/colcon.log" >&2
+        die "colcon build failed; the full log is $WS/colcon.log"
+      fi
     fi
   )
   echo "$WANT_WS" >"$STAMP_WS"
