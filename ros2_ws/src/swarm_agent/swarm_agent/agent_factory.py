@@ -1,0 +1,49 @@
+"""Build a fully configured ``AgentBrain`` from a few parameters and the YAML defaults.
+
+The agent node and the headless evaluator both build their brains here, so the two
+paths run identical configurations.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+import dataclasses
+
+import numpy as np
+
+from swarm_agent.brain import AgentBrain, BrainConfig
+from swarm_agent.localization import LocalizationConfig
+from swarm_agent.lqr import design_lqr
+from swarm_mission.robot_types import (
+    load_lqr_design,
+    load_robot_types,
+    parse_type_counts,
+    robot_type,
+)
+
+
+def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
+               method: str = 'bubble', initial_position: Sequence[float] = (0.0, 0.0),
+               seed: int = 0, outer_period_s: float = 0.5,
+               localization_period_s: float | None = None,
+               robot_types_file: str | None = None, external_pose: bool = False,
+               localization: LocalizationConfig | None = None) -> AgentBrain:
+    """An AgentBrain for one robot, with the LQR gains of its type (eqs. 3.108-3.111)."""
+    types = load_robot_types(robot_types_file)
+    robot = robot_type(types, agent_type)
+    design = load_lqr_design(robot_types_file)
+    gains = design_lqr(robot, design)
+    loc = localization or LocalizationConfig()
+    if localization_period_s is not None:
+        loc = dataclasses.replace(loc, period_s=localization_period_s)
+    config = BrainConfig(
+        agent_id=agent_id, agent_type=agent_type, is_beacon=is_beacon or external_pose,
+        method=method, outer_period_s=outer_period_s, localization=loc,
+        type_radii={t: r.coverage_radius for t, r in types.items()})
+    return AgentBrain(config, robot, gains, initial_position,
+                      np.random.default_rng(seed), u_max=design.u_max)
+
+
+def type_counts_from(spec: str | dict[int, int]) -> dict[int, int]:
+    """Swarm composition from a ``1:20,2:20,3:10`` string or a mapping."""
+    return dict(spec) if isinstance(spec, dict) else parse_type_counts(spec)

@@ -1,0 +1,220 @@
+"""agent_node: one robot's brain on ROS 2 (a thin adapter around ``AgentBrain``).
+
+Topics (relative names: run each agent in its own namespace, e.g. ``agent_7``)
+
+Subscribed
+  ``imu`` (sensor_msgs/Imu)                    accelerometer, map frame -> Kalman prediction
+  ``gps`` (geometry_msgs/PoseWithCovarianceStamped)  absolute fix, beacons only
+  ``ranges`` (swarm_msgs/RangeArray)           TOA ranges to beacon neighbours
+  ``radio/rx`` (swarm_msgs/RadioPacket)        what this robot's radio heard
+  ``pose`` (geometry_msgs/PoseStamped)         external (camera) pose, hardware mode only
+  ``/swarm/shape`` (swarm_msgs/FormationShape) desired shape (transient local)
+  ``/swarm/goals`` (swarm_msgs/GoalArray)      goal states (transient local)
+
+Published
+  ``/radio/tx`` (swarm_msgs/RadioPacket)       what this robot's radio sends
+  ``cmd_force`` (geometry_msgs/WrenchStamped)  LQR force command, map frame (simulation)
+  ``cmd_vel`` (geometry_msgs/Twist)            velocity setpoint, map frame (hardware)
+  ``state`` (swarm_msgs/AgentState)            estimate, mode, assignment
+  ``routes`` (swarm_msgs/RouteTable)           DSDV route table
+
+The agent never subscribes to ``/swarm/truth``. With ``partition_locally`` the agent
+computes the partition of the announced shape itself (the thesis's future work: no
+central server); the mission node then only announces shapes.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist, WrenchStamped
+import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from sensor_msgs.msg import Imu
+
+from swarm_agent.agent_factory import make_brain, type_counts_from
+from swarm_agent.conversions import (
+    packet_from_msg,
+    packet_to_msg,
+    routes_to_msg,
+    snapshot_to_state,
+)
+from swarm_mission import qos
+from swarm_mission.conversions import goals_from_msg, shape_from_msg
+from swarm_mission.partition import partition, PartitionError
+from swarm_mission.shapes import ShapeError
+from swarm_msgs.msg import (
+    AgentState,
+    FormationShape,
+    GoalArray,
+    RadioPacket,
+    RangeArray,
+    RouteTable,
+)
+
+PARAMETERS = {
+    'agent_id': (0, 'Agent id, 0..65534; also its radio address'),
+    'agent_type': (1, 'Robot type of thesis Table 4.1 (1, 2 or 3)'),
+    'is_beacon': (False, 'Beacon robots have absolute positioning (GPS)'),
+    'method': ('bubble', 'Formation method: bubble, fractal or forces'),
+    'initial_x': (0.0, 'Deployment position x in metres (initial estimate)'),
+    'initial_y': (0.0, 'Deployment position y in metres (initial estimate)'),
+    'seed': (0, "Seed of this agent's random generator"),
+    'control_rate_hz': (50.0, 'Rate of the LQR inner loop and of cmd_force'),
+    'outer_period_s': (0.5, 'Period of the outer loop (costs, assignment, setpoint), thesis 2 Hz'),
+    'localization_period_s': (3.0, 'Period of trilateration updates (thesis 4.2: 3 s)'),
+    'state_rate_hz': (2.0, 'Rate of the state and routes introspection topics'),
+    'external_pose': (False, 'Hardware: use the camera pose topic instead of the LPS'),
+    'external_pose_std': (0.01, 'Standard deviation of the camera pose in metres'),
+    'partition_locally': (False, 'Partition announced shapes on the agent itself'),
+    'type_counts': ('', 'Swarm composition for local partitioning, e.g. 1:20,2:20,3:10'),
+    'partition_seed': (0, 'Seed of the local partition (same on every agent)'),
+    'robot_types_file': ('', 'Robot type table YAML (default: the package config)'),
+}
+
+
+class AgentNode(Node):
+    """ROS wiring of one AgentBrain; see the module docstring."""
+
+    def __init__(self, node_name: str = 'agent', namespace: str | None = None,
+                 **kwargs) -> None:
+        super().__init__(node_name, namespace=namespace, **kwargs)
+        for name, (default, text) in PARAMETERS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(description=text))
+        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        self.params = p
+        self.brain = make_brain(
+            agent_id=p['agent_id'], agent_type=p['agent_type'], is_beacon=p['is_beacon'],
+            method=p['method'], initial_position=(p['initial_x'], p['initial_y']),
+            seed=p['seed'], outer_period_s=p['outer_period_s'],
+            localization_period_s=p['localization_period_s'],
+            robot_types_file=p['robot_types_file'] or None,
+            external_pose=p['external_pose'])
+        self._type_counts = p['type_counts']
+        self._local_goal_version = 0
+
+        latched, sensor, radio, state = (
+            QoSProfile(**profile) for profile in (qos.LATCHED, qos.SENSOR, qos.RADIO, qos.STATE))
+        self._tx = self.create_publisher(RadioPacket, '/radio/tx', radio)
+        self._cmd_force = self.create_publisher(WrenchStamped, 'cmd_force', sensor)
+        self._cmd_vel = self.create_publisher(Twist, 'cmd_vel', sensor)
+        self._state = self.create_publisher(AgentState, 'state', state)
+        self._routes = self.create_publisher(RouteTable, 'routes', state)
+
+        self.create_subscription(Imu, 'imu', self._on_imu, sensor)
+        self.create_subscription(PoseWithCovarianceStamped, 'gps', self._on_gps, sensor)
+        self.create_subscription(RangeArray, 'ranges', self._on_ranges, sensor)
+        self.create_subscription(RadioPacket, 'radio/rx', self._on_radio, radio)
+        self.create_subscription(PoseStamped, 'pose', self._on_pose, sensor)
+        self.create_subscription(FormationShape, '/swarm/shape', self._on_shape, latched)
+        self.create_subscription(GoalArray, '/swarm/goals', self._on_goals, latched)
+
+        self.create_timer(1.0 / p['control_rate_hz'], self._on_control)
+        self.create_timer(1.0 / p['state_rate_hz'], self._on_introspection)
+        self.get_logger().info(
+            f'agent {p["agent_id"]} type {p["agent_type"]} beacon={p["is_beacon"]} '
+            f'method={p["method"]} ready')
+
+    # -- time
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    # -- inputs
+    def _on_imu(self, msg: Imu) -> None:
+        a = msg.linear_acceleration
+        self.brain.on_imu(self._now(), np.array([a.x, a.y]))
+
+    def _on_gps(self, msg: PoseWithCovarianceStamped) -> None:
+        pos = msg.pose.pose.position
+        std = float(np.sqrt(max(msg.pose.covariance[0], 1e-12)))
+        self.brain.on_gps(self._now(), np.array([pos.x, pos.y]), std)
+
+    def _on_pose(self, msg: PoseStamped) -> None:
+        if self.params['external_pose']:
+            pos = msg.pose.position
+            self.brain.on_gps(self._now(), np.array([pos.x, pos.y]),
+                              self.params['external_pose_std'])
+
+    def _on_ranges(self, msg: RangeArray) -> None:
+        self.brain.on_ranges(self._now(),
+                             [(r.beacon_id, r.range, r.stddev) for r in msg.ranges])
+
+    def _on_radio(self, msg: RadioPacket) -> None:
+        self.brain.on_packet(self._now(), packet_from_msg(msg))
+
+    def _on_shape(self, msg: FormationShape) -> None:
+        try:
+            shape = shape_from_msg(msg)
+        except ShapeError as exc:
+            self.get_logger().error(f'ignoring shape version {msg.version}: {exc}')
+            return
+        self.brain.set_shape(shape, msg.version)
+        if self.params['partition_locally'] and self.params['method'] != 'forces':
+            self._partition_locally(shape, msg.version)
+
+    def _partition_locally(self, shape, version: int) -> None:
+        try:
+            result = partition(shape, type_counts_from(self._type_counts),
+                               self.brain.config.type_radii, self.params['method'],
+                               seed=self.params['partition_seed'],
+                               previous=self.brain.goals or None)
+        except (PartitionError, ShapeError, ValueError) as exc:
+            self.get_logger().error(f'local partition of shape {version} failed: {exc}')
+            return
+        self.brain.set_goals(result.goals, version)
+
+    def _on_goals(self, msg: GoalArray) -> None:
+        if not self.params['partition_locally']:
+            self.brain.set_goals(goals_from_msg(msg), msg.version)
+
+    # -- outputs
+    def _on_control(self) -> None:
+        now = self.get_clock().now()
+        out = self.brain.step(now.nanoseconds * 1e-9)
+        stamp = now.to_msg()
+        for packet in out.packets:
+            self._tx.publish(packet_to_msg(packet, stamp))
+        wrench = WrenchStamped()
+        wrench.header.stamp = stamp
+        wrench.header.frame_id = 'map'
+        wrench.wrench.force.x, wrench.wrench.force.y = (float(v) for v in out.force)
+        self._cmd_force.publish(wrench)
+        twist = Twist()
+        twist.linear.x, twist.linear.y = (float(v) for v in out.velocity_setpoint)
+        self._cmd_vel.publish(twist)
+
+    def _on_introspection(self) -> None:
+        stamp = self.get_clock().now().to_msg()
+        self._state.publish(snapshot_to_state(self.brain.snapshot(), stamp))
+        self._routes.publish(routes_to_msg(self.brain.config.agent_id,
+                                           self.brain.router.routes(), stamp))
+
+    def stop(self) -> None:
+        """Command zero force and velocity (on shutdown)."""
+        self._cmd_force.publish(WrenchStamped())
+        self._cmd_vel.publish(Twist())
+
+
+def main(args=None) -> None:
+    """Run one agent node (``ros2 run swarm_agent agent_node``)."""
+    rclpy.init(args=args)
+    node = AgentNode()
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        try:
+            node.stop()
+        except Exception:  # noqa: BLE001 - the context may already be gone
+            pass
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main(sys.argv)

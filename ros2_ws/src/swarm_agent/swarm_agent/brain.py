@@ -1,0 +1,405 @@
+"""The robot's brain: one pure object per agent, advanced by time given as an argument.
+
+It combines the algorithms of thesis chapter 3 exactly as an agent runs them:
+
+- DSDV mesh routing (3.1.2) through ``DsdvRouter``; every heartbeat carries this
+  agent's ``NeighbourInfo`` (type, beacon flag, mode, estimated position, velocity).
+- Localization (3.1.1, 3.1.4) through ``Localizer``: the IMU propagates the Kalman
+  filter, a localization tick every period trilaterates against the beacons heard
+  directly (their positions from their heartbeats), beacons take GPS fixes; lost and
+  return-to-home modes of 3.1.3.
+- Formation (3.2): with ``bubble``/``fractal`` goals, the agent computes its cost row
+  to the goals of its type (visibility graph + Dijkstra in its free configuration
+  space, 3.2.2.2), floods it tagged with the consensus round, and at the next round
+  solves the Hungarian assignment over the rows of the previous round. Agents holding
+  the same rows compute the same assignment; the digest of the rows used is exposed so
+  that agreement can be checked. With ``forces`` there are no goals: the artificial
+  forces of 3.2.1.1 act on the agent directly.
+- Control (3.2.4): a velocity setpoint (proportional to the distance, saturated at
+  0.5 m/s, plus collision avoidance) tracked by the LQR inner loop (eqs. 3.108-3.111).
+
+Inputs: ``on_imu``, ``on_gps``, ``on_ranges``, ``on_packet``, ``set_shape``,
+``set_goals``. Output: ``step(t)`` returns the packets to send and the force command;
+``snapshot()`` the estimate, mode and assignment for introspection.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+import logging
+import math
+import zlib
+
+import numpy as np
+import shapely
+
+from swarm_agent.assignment import assign
+from swarm_agent.costs import VisibilityGraph
+from swarm_agent.dsdv import DsdvConfig, DsdvRouter
+from swarm_agent.forces import ForceParams, formation_force
+from swarm_agent.free_space import grow_obstacles
+from swarm_agent.localization import LocalizationConfig, Localizer, Mode
+from swarm_agent.lqr import LqrGains, VelocityLoop
+from swarm_agent.mesh_messages import (
+    CostRow,
+    MeshMessageError,
+    message_kind,
+    MSG_COST_ROW,
+    NeighbourInfo,
+)
+from swarm_agent.packet import Kind, Packet
+from swarm_agent.setpoint import SetpointParams, velocity_setpoint
+from swarm_mission.contour import sample_boundary
+from swarm_mission.goals import Goal
+from swarm_mission.robot_types import load_robot_types, RobotType
+from swarm_mission.shapes import Shape
+
+LOG = logging.getLogger(__name__)
+
+METHODS = ('bubble', 'fractal', 'forces')
+
+
+def _inside(shape: Shape, point: np.ndarray) -> bool:
+    return bool(shapely.contains_xy(shape.region, float(point[0]), float(point[1])))
+
+
+class BrainConfigError(ValueError):
+    """A brain parameter that cannot be used."""
+
+
+@dataclass
+class BrainConfig:
+    """Per-agent parameters. Rates follow thesis 4 (2 Hz outer loop, 3 s localization)."""
+
+    agent_id: int
+    agent_type: int
+    is_beacon: bool = False
+    method: str = 'bubble'
+    outer_period_s: float = 0.5          # propagation, forces and assignment at 2 Hz
+    settle_speed: float = 0.01           # m/s, eq. 4.1
+    neighbour_stale_s: float = 3.0       # neighbour info older than this is ignored
+    range_stale_s: float = 2.0           # TOA ranges older than this are not used
+    forces_contour_step: float = 0.05    # m, boundary sample spacing for the forces method
+    forces_speed_per_newton: float = 0.002  # m/s per N: forces method setpoint scaling
+    localization: LocalizationConfig = field(default_factory=LocalizationConfig)
+    dsdv: DsdvConfig = field(default_factory=DsdvConfig)
+    setpoint: SetpointParams = field(default_factory=SetpointParams)
+    forces: ForceParams = field(default_factory=ForceParams)
+    type_radii: dict[int, float] = field(default_factory=lambda: {
+        t: r.coverage_radius for t, r in load_robot_types().items()})
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise BrainConfigError(
+                f'unknown formation method {self.method!r}; use one of {", ".join(METHODS)}')
+        if not 0 <= self.agent_id < 0xFFFF:
+            raise BrainConfigError(f'agent_id must be in 0..65534, got {self.agent_id}')
+        if self.outer_period_s <= 0:
+            raise BrainConfigError('outer_period_s must be positive')
+
+
+@dataclass
+class Neighbour:
+    """Last heartbeat information from a direct neighbour."""
+
+    info: NeighbourInfo
+    heard_at: float
+
+
+@dataclass(frozen=True)
+class BrainOutput:
+    """What one call of ``step`` produces."""
+
+    packets: list[Packet]
+    force: np.ndarray              # N, map frame (to the simulator)
+    velocity_setpoint: np.ndarray  # m/s, map frame (to hardware)
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """Introspection of the brain: estimate, mode and assignment (swarm_msgs/AgentState)."""
+
+    agent_id: int
+    agent_type: int
+    is_beacon: bool
+    mode: int
+    position: np.ndarray
+    velocity: np.ndarray
+    covariance: np.ndarray
+    goal_id: int                   # -1 when none
+    goal_version: int
+    assignment_round: int
+    assignment_digest: int
+    rows_used: int
+    settled: bool
+
+
+class AgentBrain:
+    """One agent's decision making; see the module docstring."""
+
+    def __init__(self, config: BrainConfig, robot: RobotType, gains: LqrGains,
+                 initial_position: Sequence[float], rng: np.random.Generator,
+                 u_max: float | None = None) -> None:
+        self.config = config
+        self.robot = robot
+        self.rng = rng
+        self.router = DsdvRouter(config.agent_id, config.dsdv)
+        self.localizer = Localizer(config.localization, np.asarray(initial_position, float))
+        self.loop = VelocityLoop(gains, u_max=u_max)
+        self.neighbours: dict[int, Neighbour] = {}
+        self._ranges: list[tuple[int, float, float]] = []
+        self._ranges_at = -math.inf
+        self._outbox: list[Packet] = []
+        self._last_t: float | None = None
+        self._next_outer = 0.0
+        self._next_localization = config.localization.period_s
+        self._setpoint = np.zeros(2)
+        self._force = np.zeros(2)
+        # Shape and goals
+        self.shape: Shape | None = None
+        self.shape_version = 0
+        self._graph: VisibilityGraph | None = None
+        self._boundary: np.ndarray | None = None
+        self._obstacle_samples: np.ndarray | None = None
+        self.goals: list[Goal] = []
+        self.goal_version = 0
+        self._my_goals: list[Goal] = []
+        # Consensus state
+        self._rows: dict[int, dict[int, CostRow]] = {}     # round -> agent -> row
+        self.goal_id = -1
+        self.assignment_round = 0
+        self.assignment_digest = 0
+        self.rows_used = 0
+        self.stats = {'bad_mesh_messages': 0, 'rows_sent': 0, 'rows_received': 0,
+                      'assignments': 0}
+
+    # ------------------------------------------------------------------ inputs
+    def set_shape(self, shape: Shape, version: int) -> None:
+        """Adopt a new formation shape (and its workspace obstacles)."""
+        if version == self.shape_version and self.shape is not None:
+            return
+        self.shape = shape
+        self.shape_version = version
+        grown = grow_obstacles(list(shape.obstacles), self.robot.coverage_radius)
+        self._graph = VisibilityGraph(grown)
+        if self.config.method == 'forces':
+            self._boundary = sample_boundary(shape.region, self.config.forces_contour_step)
+            if shape.obstacles:
+                self._obstacle_samples = np.vstack([
+                    sample_boundary(o, self.config.forces_contour_step)
+                    for o in shape.obstacles])
+        self.localizer.home = np.asarray(shape.centroid, dtype=float)
+
+    def set_goals(self, goals: Sequence[Goal], version: int) -> None:
+        """Adopt a new versioned goal list (all types); keep the goal of the same id."""
+        if version == self.goal_version:
+            return
+        self.goals = list(goals)
+        self.goal_version = version
+        self._my_goals = sorted((g for g in goals if g.type == self.config.agent_type),
+                                key=lambda g: g.id)
+        self._rows.clear()
+        if not any(g.id == self.goal_id for g in self._my_goals):
+            self.goal_id = -1
+
+    def on_imu(self, t: float, accel: np.ndarray) -> None:
+        """Accelerometer sample in the map frame (m/s^2): Kalman prediction (eq. 3.30)."""
+        accel = np.asarray(accel, dtype=float)
+        if accel.shape != (2,) or not np.all(np.isfinite(accel)):
+            return
+        self.localizer.predict(t, accel)
+
+    def on_gps(self, t: float, position: np.ndarray, std: float) -> None:
+        """Absolute position fix; only beacons have one."""
+        if self.config.is_beacon:
+            position = np.asarray(position, dtype=float)
+            if position.shape == (2,) and np.all(np.isfinite(position)) and std > 0:
+                self.localizer.gps_update(t, position, std)
+
+    def on_ranges(self, t: float, ranges: Sequence[tuple[int, float, float]]) -> None:
+        """TOA ranges (beacon id, metres, std) to beacons that are direct neighbours."""
+        self._ranges = [(int(b), float(r), float(s)) for b, r, s in ranges
+                        if math.isfinite(r) and r >= 0.0 and math.isfinite(s) and s > 0.0]
+        self._ranges_at = t
+
+    def on_packet(self, t: float, packet: Packet) -> None:
+        """A packet heard on the radio: route it, and consume what is for this agent."""
+        out = self.router.on_packet(t, packet)
+        self._outbox.extend(out.packets)
+        for item in out.delivered:
+            try:
+                if item.kind == Kind.HEARTBEAT:
+                    info = NeighbourInfo.decode(item.payload)
+                    self.neighbours[item.origin] = Neighbour(info, t)
+                elif message_kind(item.payload) == MSG_COST_ROW:
+                    self._store_row(CostRow.decode(item.payload))
+            except MeshMessageError as exc:
+                self.stats['bad_mesh_messages'] += 1
+                LOG.debug('agent %d dropped a mesh message from %d: %s',
+                          self.config.agent_id, item.origin, exc)
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, t: float) -> BrainOutput:
+        """Advance to time ``t``: inner velocity loop always, outer loop when due."""
+        dt = 0.0 if self._last_t is None else max(0.0, t - self._last_t)
+        self._last_t = t
+        if not self.config.is_beacon and t >= self._next_localization:
+            self._next_localization += self.config.localization.period_s
+            self._localize(t)
+        if t >= self._next_outer:
+            self._next_outer += self.config.outer_period_s
+            self._outer(t)
+        self.router.set_heartbeat_info(self._info().encode())
+        self._outbox.extend(self.router.tick(t))
+        if dt > 0.0:
+            self._force = self.loop.step(dt, self._setpoint, self.localizer.velocity)
+        packets, self._outbox = self._outbox, []
+        return BrainOutput(packets, self._force.copy(), self._setpoint.copy())
+
+    def snapshot(self) -> Snapshot:
+        """The agent's current belief (for AgentState and metrics)."""
+        return Snapshot(
+            agent_id=self.config.agent_id, agent_type=self.config.agent_type,
+            is_beacon=self.config.is_beacon, mode=int(self.localizer.mode),
+            position=self.localizer.position.copy(), velocity=self.localizer.velocity.copy(),
+            covariance=np.array(self.localizer.covariance, dtype=float).copy(),
+            goal_id=self.goal_id, goal_version=self.goal_version,
+            assignment_round=self.assignment_round,
+            assignment_digest=self.assignment_digest, rows_used=self.rows_used,
+            settled=self.settled)
+
+    @property
+    def settled(self) -> bool:
+        """Inside the shape (own estimate) and slower than the settling speed (eq. 4.1)."""
+        if self.shape is None:
+            return False
+        speed = float(np.hypot(*self.localizer.velocity))
+        return speed < self.config.settle_speed and _inside(self.shape, self.localizer.position)
+
+    # ------------------------------------------------------------------ internals
+    def _info(self) -> NeighbourInfo:
+        pos = self.localizer.position
+        vel = self.localizer.velocity
+        return NeighbourInfo(self.config.agent_type, self.config.is_beacon,
+                             int(self.localizer.mode), (float(pos[0]), float(pos[1])),
+                             (float(vel[0]), float(vel[1])), self.settled)
+
+    def _fresh_neighbours(self, t: float) -> dict[int, NeighbourInfo]:
+        stale = [k for k, n in self.neighbours.items()
+                 if t - n.heard_at > self.config.neighbour_stale_s]
+        for k in stale:
+            del self.neighbours[k]
+        return {k: n.info for k, n in self.neighbours.items()}
+
+    def _localize(self, t: float) -> None:
+        """Localization tick (3.1.1, 3.1.3): trilaterate against beacon neighbours."""
+        beacons = []
+        if t - self._ranges_at <= self.config.range_stale_s:
+            fresh = self._fresh_neighbours(t)
+            for beacon_id, rng_m, std in self._ranges:
+                info = fresh.get(beacon_id)
+                if info is not None and info.is_beacon and info.mode == Mode.NORMAL:
+                    beacons.append((np.asarray(info.position, dtype=float), rng_m, std))
+        self.localizer.localize(t, beacons)
+
+    def _round(self, t: float) -> int:
+        return int(math.floor(t / self.config.outer_period_s + 1e-9))
+
+    def _outer(self, t: float) -> None:
+        """The 2 Hz loop: cost report, assignment, setpoint (3.2.2.2, 3.2.4)."""
+        neighbours = self._fresh_neighbours(t)
+        mode = self.localizer.mode
+        position = self.localizer.position
+        if self.shape is None:
+            self._setpoint = np.zeros(2)
+            return
+        if mode == Mode.RETURN_HOME:
+            # 3.1.3: head for the centre of the formation to meet beacons again.
+            target = np.asarray(self.localizer.home, dtype=float)
+            self._setpoint = self._setpoint_towards(target, neighbours)
+            return
+        if self.config.method == 'forces':
+            self._setpoint = self._forces_setpoint(neighbours)
+            return
+        rnd = self._round(t)
+        if self._my_goals and mode == Mode.NORMAL:
+            self._report_costs(rnd)
+        self._assign(rnd - 1)
+        goal = next((g for g in self._my_goals if g.id == self.goal_id), None)
+        target = position if goal is None else np.array([goal.x, goal.y])
+        self._setpoint = self._setpoint_towards(target, neighbours)
+
+    def _report_costs(self, rnd: int) -> None:
+        goals = np.array([[g.x, g.y] for g in self._my_goals])
+        costs = self._graph.cost_row(self.localizer.position, goals)
+        row = CostRow.from_costs(self.config.agent_id, self.config.agent_type,
+                                 self.goal_version, rnd, costs)
+        self._store_row(row)
+        self._outbox.extend(self.router.broadcast(self._last_t or 0.0, row.encode()))
+        self.stats['rows_sent'] += 1
+
+    def _store_row(self, row: CostRow) -> None:
+        if row.agent_type != self.config.agent_type or row.goal_version != self.goal_version:
+            return
+        if len(row.quantised) != len(self._my_goals):
+            self.stats['bad_mesh_messages'] += 1
+            return
+        if row.agent_id != self.config.agent_id:
+            self.stats['rows_received'] += 1
+        self._rows.setdefault(row.round, {})[row.agent_id] = row
+        for old in [r for r in self._rows if r < row.round - 4]:
+            del self._rows[old]
+
+    def _assign(self, rnd: int) -> None:
+        """Hungarian assignment over the rows of round ``rnd`` (the same on every agent)."""
+        rows = self._rows.get(rnd)
+        if not rows or self.config.agent_id not in rows:
+            return
+        ordered = sorted(rows.items())
+        matrix = {aid: (row.agent_type, row.costs) for aid, row in ordered}
+        goal_ids = np.array([g.id for g in self._my_goals])
+        goal_types = np.array([g.type for g in self._my_goals])
+        result = assign(matrix, goal_types, goal_ids)
+        digest = zlib.crc32(b''.join(
+            aid.to_bytes(2, 'little') + row.encode() for aid, row in ordered))
+        self.goal_id = int(result.get(self.config.agent_id, -1))
+        self.assignment_round = rnd
+        self.assignment_digest = digest
+        self.rows_used = len(rows)
+        self.stats['assignments'] += 1
+
+    def _neighbour_arrays(self, neighbours: dict[int, NeighbourInfo]
+                          ) -> tuple[np.ndarray, np.ndarray]:
+        if not neighbours:
+            return np.zeros((0, 2)), np.zeros(0)
+        pos = np.array([n.position for n in neighbours.values()], dtype=float)
+        radii = np.array([self._radius_of(n.agent_type) for n in neighbours.values()])
+        return pos, radii
+
+    def _radius_of(self, agent_type: int) -> float:
+        return self.config.type_radii.get(agent_type, self.robot.coverage_radius)
+
+    def _setpoint_towards(self, target: np.ndarray,
+                          neighbours: dict[int, NeighbourInfo]) -> np.ndarray:
+        position = self.localizer.position
+        waypoints = None
+        if self._graph is not None and np.hypot(*(target - position)) > 1e-6:
+            waypoints = self._graph.path(position, target)
+        pos, radii = self._neighbour_arrays(neighbours)
+        return velocity_setpoint(position, target, self.config.setpoint, waypoints=waypoints,
+                                 neighbours=pos, neighbour_radii=radii,
+                                 own_radius=self.robot.coverage_radius)
+
+    def _forces_setpoint(self, neighbours: dict[int, NeighbourInfo]) -> np.ndarray:
+        """Artificial forces (3.2.1.1) turned into a velocity setpoint."""
+        pos, radii = self._neighbour_arrays(neighbours)
+        position = self.localizer.position
+        force = formation_force(position, self.localizer.velocity,
+                                _inside(self.shape, position), self._boundary, pos, radii,
+                                self.robot.coverage_radius, self._obstacle_samples,
+                                self.config.forces)
+        v = force * self.config.forces_speed_per_newton
+        speed = float(np.hypot(*v))
+        v_max = self.config.setpoint.v_max
+        return v * (v_max / speed) if speed > v_max else v

@@ -1,0 +1,91 @@
+"""Pure conversions between swarm_msgs messages and the brain's domain types.
+
+Imports message classes only (no rclpy), so it is tested without a ROS graph.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from builtin_interfaces.msg import Time
+import numpy as np
+
+from swarm_agent.brain import Snapshot
+from swarm_agent.packet import Packet
+from swarm_msgs.msg import AgentState, CostReport, RadioPacket, RouteEntry, RouteTable
+
+
+def packet_to_msg(packet: Packet, stamp: Time | None = None) -> RadioPacket:
+    """Domain packet -> swarm_msgs/RadioPacket."""
+    msg = RadioPacket()
+    if stamp is not None:
+        msg.header.stamp = stamp
+    msg.source = packet.source
+    msg.destination = packet.destination
+    msg.kind = packet.kind
+    msg.sequence = packet.sequence
+    msg.ttl = packet.ttl
+    msg.payload = bytes(packet.payload)
+    return msg
+
+
+def packet_from_msg(msg: RadioPacket) -> Packet:
+    """swarm_msgs/RadioPacket -> domain packet (payload as immutable bytes)."""
+    return Packet(source=int(msg.source), destination=int(msg.destination), kind=int(msg.kind),
+                  sequence=int(msg.sequence), ttl=int(msg.ttl), payload=bytes(msg.payload))
+
+
+def snapshot_to_state(snap: Snapshot, stamp: Time | None = None,
+                      frame_id: str = 'map') -> AgentState:
+    """Brain snapshot -> swarm_msgs/AgentState."""
+    msg = AgentState()
+    if stamp is not None:
+        msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.id = snap.agent_id
+    msg.type = snap.agent_type
+    msg.is_beacon = snap.is_beacon
+    msg.mode = snap.mode
+    msg.position = [float(v) for v in snap.position]
+    msg.velocity = [float(v) for v in snap.velocity]
+    cov = np.asarray(snap.covariance, dtype=float).reshape(-1)
+    msg.covariance = [float(v) for v in cov] if cov.size == 16 else [0.0] * 16
+    msg.assigned_goal = int(snap.goal_id)
+    msg.goal_version = int(snap.goal_version)
+    msg.assignment_round = int(snap.assignment_round) & 0xFFFFFFFF
+    msg.assignment_digest = int(snap.assignment_digest) & 0xFFFFFFFF
+    msg.rows_used = min(int(snap.rows_used), 0xFFFF)
+    msg.settled = bool(snap.settled)
+    return msg
+
+
+def routes_to_msg(owner: int, routes: Iterable, stamp: Time | None = None) -> RouteTable:
+    """DSDV route entries (destination, next_hop, hop_count, sequence_number) -> RouteTable."""
+    msg = RouteTable()
+    if stamp is not None:
+        msg.header.stamp = stamp
+    msg.owner = owner
+    for r in routes:
+        entry = RouteEntry()
+        entry.destination = int(r.destination)
+        entry.next_hop = int(r.next_hop)
+        entry.hop_count = min(int(r.hop_count), RouteEntry.INFINITE_HOPS)
+        entry.sequence_number = int(r.sequence_number) & 0xFFFFFFFF
+        msg.routes.append(entry)
+    return msg
+
+
+def cost_report_to_msg(agent_id: int, agent_type: int, shape_version: int, goal_version: int,
+                       goal_ids: Iterable[int], costs: Iterable[float],
+                       stamp: Time | None = None) -> CostReport:
+    """A cost row -> swarm_msgs/CostReport (for introspection; the mesh carries the rows)."""
+    msg = CostReport()
+    if stamp is not None:
+        msg.header.stamp = stamp
+    msg.agent_id = agent_id
+    msg.agent_type = agent_type
+    msg.shape_version = shape_version
+    msg.goal_version = goal_version
+    msg.goal_ids = [int(g) for g in goal_ids]
+    msg.costs = [float(c) for c in costs]
+    return msg

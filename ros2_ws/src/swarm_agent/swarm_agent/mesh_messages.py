@@ -1,0 +1,133 @@
+"""Application messages the agents exchange over the DSDV mesh.
+
+The router (``swarm_agent.dsdv``) carries opaque bytes; this module defines what the
+agents put in them, in a compact fixed binary layout so that one message fits one
+100-byte XBee payload:
+
+- ``NeighbourInfo``: carried in every DSDV heartbeat: type, beacon flag, mode and the
+  sender's estimated position and velocity. Beacons' positions in it are what the
+  others trilaterate against (thesis 3.1.1); neighbours' positions feed collision
+  avoidance and the inter-member forces (eqs. 3.86-3.88).
+- ``CostRow``: one agent's costs to the goals of its type for one consensus round
+  (thesis 3.2.2.2), flooded to the whole mesh. Costs are quantised to centimetres:
+  the quantised numbers are the ones every agent feeds to the Hungarian algorithm,
+  so agents holding the same rows compute bit-identical matrices.
+
+Every decoder raises ``MeshMessageError`` (a ValueError) on malformed bytes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import struct
+
+import numpy as np
+
+MSG_NEIGHBOUR_INFO = 1
+MSG_COST_ROW = 2
+
+COST_QUANTUM_M = 0.01          # cost resolution in metres
+COST_UNREACHABLE = 0xFFFFFFFF  # wire value of an infinite cost
+
+_INFO = struct.Struct('<BBBBffff')          # kind, type, flags, mode, x, y, vx, vy
+_ROW_HEADER = struct.Struct('<BHBIIH')      # kind, agent, type, goal_version, round, count
+_ROW_COST = 'I'
+
+FLAG_BEACON = 0x01
+FLAG_SETTLED = 0x02
+
+
+class MeshMessageError(ValueError):
+    """Bytes that are not a valid mesh application message."""
+
+
+@dataclass(frozen=True)
+class NeighbourInfo:
+    """What a heartbeat tells about its sender."""
+
+    agent_type: int
+    is_beacon: bool
+    mode: int
+    position: tuple[float, float]
+    velocity: tuple[float, float]
+    settled: bool = False
+
+    def encode(self) -> bytes:
+        """Pack into 20 bytes."""
+        flags = (FLAG_BEACON if self.is_beacon else 0) | (FLAG_SETTLED if self.settled else 0)
+        return _INFO.pack(MSG_NEIGHBOUR_INFO, self.agent_type, flags, self.mode,
+                          *self.position, *self.velocity)
+
+    @classmethod
+    def decode(cls, data: bytes) -> NeighbourInfo:
+        """Unpack; raise MeshMessageError on anything malformed."""
+        if len(data) != _INFO.size:
+            raise MeshMessageError(
+                f'neighbour info must be {_INFO.size} bytes, got {len(data)}')
+        kind, agent_type, flags, mode, x, y, vx, vy = _INFO.unpack(data)
+        if kind != MSG_NEIGHBOUR_INFO:
+            raise MeshMessageError(f'not a neighbour info message (kind {kind})')
+        values = np.array([x, y, vx, vy])
+        if not np.all(np.isfinite(values)):
+            raise MeshMessageError('neighbour info carries a non-finite position or velocity')
+        return cls(agent_type, bool(flags & FLAG_BEACON), mode, (x, y), (vx, vy),
+                   bool(flags & FLAG_SETTLED))
+
+
+@dataclass(frozen=True)
+class CostRow:
+    """Costs of one agent to the goals of its type, for one consensus round.
+
+    ``costs`` follow the goal-id order of that type's goals in the goal list of
+    ``goal_version``; ``quantised`` holds the integer centimetres actually sent.
+    """
+
+    agent_id: int
+    agent_type: int
+    goal_version: int
+    round: int
+    quantised: tuple[int, ...]
+
+    @classmethod
+    def from_costs(cls, agent_id: int, agent_type: int, goal_version: int, round_: int,
+                   costs: np.ndarray) -> CostRow:
+        """Quantise float costs (metres, inf = unreachable)."""
+        costs = np.asarray(costs, dtype=float)
+        q = np.where(np.isfinite(costs),
+                     np.minimum(np.round(costs / COST_QUANTUM_M), COST_UNREACHABLE - 1),
+                     COST_UNREACHABLE).astype(np.int64)
+        return cls(agent_id, agent_type, goal_version, round_, tuple(int(v) for v in q))
+
+    @property
+    def costs(self) -> np.ndarray:
+        """Costs in metres (inf for unreachable goals)."""
+        q = np.asarray(self.quantised, dtype=np.int64)
+        return np.where(q == COST_UNREACHABLE, np.inf, q * COST_QUANTUM_M)
+
+    def encode(self) -> bytes:
+        """Pack into 14 + 4 * len(costs) bytes (the router fragments if needed)."""
+        return _ROW_HEADER.pack(MSG_COST_ROW, self.agent_id, self.agent_type,
+                                self.goal_version, self.round, len(self.quantised)) + \
+            struct.pack(f'<{len(self.quantised)}{_ROW_COST}', *self.quantised)
+
+    @classmethod
+    def decode(cls, data: bytes) -> CostRow:
+        """Unpack; raise MeshMessageError on anything malformed."""
+        if len(data) < _ROW_HEADER.size:
+            raise MeshMessageError(f'cost row truncated to {len(data)} bytes')
+        kind, agent, agent_type, goal_version, round_, count = _ROW_HEADER.unpack_from(data)
+        if kind != MSG_COST_ROW:
+            raise MeshMessageError(f'not a cost row (kind {kind})')
+        expected = _ROW_HEADER.size + 4 * count
+        if len(data) != expected:
+            raise MeshMessageError(
+                f'cost row of {count} goals must be {expected} bytes, got {len(data)}')
+        quantised = struct.unpack_from(f'<{count}{_ROW_COST}', data, _ROW_HEADER.size)
+        return cls(agent, agent_type, goal_version, round_, tuple(quantised))
+
+
+def message_kind(data: bytes) -> int:
+    """First byte of an application payload, or raise on empty bytes."""
+    if not data:
+        raise MeshMessageError('empty mesh message')
+    return data[0]

@@ -1,0 +1,167 @@
+"""The mission planner: versioned shapes, shape sequences, partitioning and self-repair.
+
+Pure logic shared by ``mission_node`` and the headless evaluator:
+
+- ``set_shape`` validates and versions a shape and partitions it into typed goal
+  states for the agents believed alive (bubble packing or randomized fractals;
+  ``forces`` needs no partition, thesis 3.2.1.1). With bubble packing a changed shape is
+  re-meshed incrementally from the previous goals (the background process of 4.3.4).
+- A ``ShapeSequence`` switches shapes at given times (dynamic formations, 4.3.4).
+- Agents report liveness (their state messages on ROS, or the brains in the
+  evaluator); an agent silent for ``agent_timeout_s`` is declared lost and the shape is
+  re-partitioned for the survivors (self-repair).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+import json
+import logging
+import pathlib
+
+import yaml
+
+from swarm_mission.goals import Goal
+from swarm_mission.partition import partition, PartitionResult
+from swarm_mission.shapes import load_shape, Shape, ShapeError
+
+LOG = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class SequenceStep:
+    """Switch to ``shape`` at time ``time`` (seconds from the start of the run)."""
+
+    time: float
+    shape: Shape
+
+
+def load_sequence(path: str | pathlib.Path, *, scale: float = 1.0) -> list[SequenceStep]:
+    """Read a shape sequence file (YAML or JSON).
+
+    Layout: ``{"sequence": [{"time": 0, "shape": "circle_314"}, {"time": 120,
+    "shape": "path/to/shape.json"}, ...]}``; relative shape paths are resolved against
+    the sequence file's folder. Raises ShapeError naming the bad entry.
+    """
+    path = pathlib.Path(path)
+    try:
+        text = path.read_text(encoding='utf-8')
+    except OSError as exc:
+        raise ShapeError(f'cannot read shape sequence {path}: {exc.strerror}') from exc
+    try:
+        data = json.loads(text) if path.suffix == '.json' else yaml.safe_load(text)
+    except (ValueError, yaml.YAMLError) as exc:
+        raise ShapeError(f'shape sequence {path} is not valid YAML/JSON: {exc}') from exc
+    entries = data.get('sequence') if isinstance(data, dict) else None
+    if not isinstance(entries, list) or not entries:
+        raise ShapeError(f'shape sequence {path} needs a non-empty "sequence" list of '
+                         '{time, shape} entries')
+    steps = []
+    for i, entry in enumerate(entries):
+        try:
+            t = float(entry['time'])
+            spec = str(entry['shape'])
+        except (KeyError, TypeError, ValueError):
+            raise ShapeError(f'shape sequence {path} entry {i} needs a numeric "time" and '
+                             'a "shape" name or path') from None
+        candidate = path.parent / spec
+        steps.append(SequenceStep(t, load_shape(str(candidate) if candidate.exists() else spec,
+                                                scale=scale)))
+    times = [s.time for s in steps]
+    if times != sorted(times):
+        raise ShapeError(f'shape sequence {path} times must increase, got {times}')
+    return steps
+
+
+@dataclass
+class MissionConfig:
+    """Mission parameters (YAML defaults in swarm_mission/config/mission.yaml)."""
+
+    method: str = 'bubble'
+    seed: int = 0
+    agent_timeout_s: float = 6.0     # silence after which an agent is declared lost
+    repair: bool = True              # re-partition for the survivors when agents are lost
+
+
+@dataclass
+class Mission:
+    """Versioned shape and goals for a swarm of known composition."""
+
+    config: MissionConfig
+    agent_types: dict[int, int]              # agent id -> robot type
+    radii: dict[int, float]                  # robot type -> coverage radius
+    shape: Shape | None = None
+    shape_version: int = 0
+    goals: list[Goal] = field(default_factory=list)
+    goal_version: int = 0
+    last_result: PartitionResult | None = None
+    alive: set[int] = field(default_factory=set)
+    lost: set[int] = field(default_factory=set)
+    _last_seen: dict[int, float] = field(default_factory=dict)
+    events: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.alive = set(self.agent_types)
+
+    def type_counts(self) -> dict[int, int]:
+        """Composition of the agents believed alive."""
+        counts: dict[int, int] = {}
+        for agent in sorted(self.alive):
+            counts[self.agent_types[agent]] = counts.get(self.agent_types[agent], 0) + 1
+        return counts
+
+    def set_shape(self, shape: Shape) -> bool:
+        """Adopt a new shape version and partition it; False if partitioning failed."""
+        self.shape = shape
+        self.shape_version += 1
+        return self.repartition(reason=f'shape {shape.name} (version {self.shape_version})')
+
+    def repartition(self, reason: str) -> bool:
+        """Partition the current shape for the living agents and bump the goal version."""
+        if self.shape is None:
+            return False
+        if self.config.method == 'forces':
+            self.goals = []
+            self.goal_version += 1
+            self.events.append(f'goals v{self.goal_version}: none (forces) for {reason}')
+            return True
+        previous = self.goals if (self.config.method == 'bubble' and self.goals) else None
+        result = partition(self.shape, self.type_counts(), self.radii, self.config.method,
+                           seed=self.config.seed, previous=previous)
+        self.last_result = result
+        self.goals = list(result.goals)
+        self.goal_version += 1
+        self.events.append(
+            f'goals v{self.goal_version}: {len(self.goals)} {self.config.method} goals for '
+            f'{reason} in {result.seconds:.2f} s')
+        LOG.info(self.events[-1])
+        return True
+
+    def agent_seen(self, agent_id: int, t: float) -> None:
+        """Liveness report of one agent at time ``t``."""
+        if agent_id in self.agent_types:
+            self._last_seen[agent_id] = t
+
+    def check_liveness(self, t: float) -> list[int]:
+        """Declare agents silent for too long lost; re-partition if any; return them."""
+        newly_lost = [a for a in sorted(self.alive)
+                      if a in self._last_seen
+                      and t - self._last_seen[a] > self.config.agent_timeout_s]
+        if not newly_lost:
+            return []
+        self.alive -= set(newly_lost)
+        self.lost |= set(newly_lost)
+        self.events.append(f't={t:.1f} s: agents {newly_lost} lost')
+        LOG.warning(self.events[-1])
+        if self.config.repair and self.alive:
+            self.repartition(reason=f'self-repair after losing {newly_lost}')
+        return newly_lost
+
+
+def goals_by_type(goals: Sequence[Goal]) -> dict[int, list[Goal]]:
+    """Group goals by robot type, each group sorted by id."""
+    groups: dict[int, list[Goal]] = {}
+    for g in sorted(goals, key=lambda g: g.id):
+        groups.setdefault(g.type, []).append(g)
+    return groups

@@ -1,0 +1,172 @@
+"""mission_node: announces the formation shape and its typed goal states.
+
+Topics and services
+  ``/swarm/shape`` (swarm_msgs/FormationShape, latched)   published: current shape
+  ``/swarm/goals`` (swarm_msgs/GoalArray, latched)        published: current goals
+  ``/swarm/shape_in`` (swarm_msgs/FormationShape)         subscribed: set a shape by topic
+  ``/swarm/set_shape`` (swarm_msgs/srv/SetShape)          service: set a shape, with reply
+  ``/agent_K/state`` (swarm_msgs/AgentState)              subscribed: liveness for self-repair
+
+The shape comes from the ``shape`` parameter (built-in name or .json/.svg/.png file),
+the topic or the service; ``sequence_file`` switches shapes at given sim times. With
+``decentralized`` the node only announces shapes: every agent partitions for itself.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from rcl_interfaces.msg import ParameterDescriptor
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+
+from swarm_mission import qos
+from swarm_mission.conversions import goals_to_msg, shape_from_msg, shape_to_msg
+from swarm_mission.mission import load_sequence, Mission, MissionConfig
+from swarm_mission.partition import PartitionError
+from swarm_mission.robot_types import load_robot_types, parse_type_counts, RobotTypeError
+from swarm_mission.shapes import load_shape, ShapeError
+from swarm_msgs.msg import AgentState, FormationShape, GoalArray
+from swarm_msgs.srv import SetShape
+
+PARAMETERS = {
+    'shape': ('circle_314', 'Initial shape: built-in name or path to .json/.svg/.png'),
+    'shape_scale': (1.0, 'Scale applied to SVG/PNG shapes'),
+    'sequence_file': ('', 'Optional YAML/JSON shape sequence [{time, shape}, ...]'),
+    'method': ('bubble', 'Partition method: bubble, fractal or forces (no partition)'),
+    'agent_types': ([1], 'Robot type of each agent id 0..N-1 (fleet order)'),
+    'type_counts': ('', 'Alternative to agent_types: 1:20,2:20,3:10 (ids in that order)'),
+    'seed': (0, 'Partition seed (deterministic partitions)'),
+    'decentralized': (False, 'Only announce shapes; agents partition themselves'),
+    'agent_timeout_s': (6.0, 'Silence after which an agent is declared lost'),
+    'repair': (True, 'Re-partition for the survivors when agents are lost'),
+}
+
+
+class MissionNode(Node):
+    """ROS wiring of the Mission planner; see the module docstring."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__('mission', **kwargs)
+        for name, (default, text) in PARAMETERS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(description=text))
+        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        self.params = p
+        types = load_robot_types()
+        if p['type_counts']:
+            counts = parse_type_counts(p['type_counts'])
+            agent_types = [t for t in sorted(counts) for _ in range(counts[t])]
+        else:
+            agent_types = [int(t) for t in p['agent_types']]
+        for t in set(agent_types):
+            if t not in types:
+                raise RobotTypeError(f'agent_types holds unknown robot type {t}; '
+                                     f'known: {sorted(types)}')
+        self.mission = Mission(
+            MissionConfig(method=p['method'], seed=p['seed'],
+                          agent_timeout_s=p['agent_timeout_s'], repair=p['repair']),
+            agent_types=dict(enumerate(agent_types)),
+            radii={t: r.coverage_radius for t, r in types.items()})
+        self._sequence = (load_sequence(p['sequence_file'], scale=p['shape_scale'])
+                          if p['sequence_file'] else [])
+        self._next_step = 0
+        self._start: float | None = None
+
+        latched = QoSProfile(**qos.LATCHED)
+        self._shape_pub = self.create_publisher(FormationShape, '/swarm/shape', latched)
+        self._goals_pub = self.create_publisher(GoalArray, '/swarm/goals', latched)
+        self.create_subscription(FormationShape, '/swarm/shape_in', self._on_shape_in,
+                                 QoSProfile(**qos.STATE))
+        self.create_service(SetShape, '/swarm/set_shape', self._on_set_shape)
+        for agent in self.mission.agent_types:
+            self.create_subscription(AgentState, f'/agent_{agent}/state', self._on_state,
+                                     QoSProfile(**qos.STATE))
+        self.create_timer(0.5, self._on_timer)
+        if not self._sequence:
+            self._apply(load_shape(p['shape'], scale=p['shape_scale']))
+
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _apply(self, shape) -> tuple[bool, str]:
+        """Version, partition and publish a shape; return (success, message)."""
+        if self.params['decentralized']:
+            self.mission.shape = shape
+            self.mission.shape_version += 1
+            ok = True
+        else:
+            try:
+                ok = self.mission.set_shape(shape)
+            except (PartitionError, ShapeError) as exc:
+                self.get_logger().error(f'cannot partition shape {shape.name!r}: {exc}')
+                return False, str(exc)
+        stamp = self.get_clock().now().to_msg()
+        self._shape_pub.publish(shape_to_msg(shape, self.mission.shape_version, stamp))
+        if not self.params['decentralized']:
+            self._publish_goals()
+        message = self.mission.events[-1] if self.mission.events else 'shape announced'
+        self.get_logger().info(message)
+        return ok, message
+
+    def _publish_goals(self) -> None:
+        stamp = self.get_clock().now().to_msg()
+        self._goals_pub.publish(goals_to_msg(self.mission.goals, self.mission.goal_version,
+                                             self.mission.shape_version,
+                                             self.params['method'], stamp))
+
+    def _on_shape_in(self, msg: FormationShape) -> None:
+        try:
+            self._apply(shape_from_msg(msg))
+        except ShapeError as exc:
+            self.get_logger().error(f'rejected shape from /swarm/shape_in: {exc}')
+
+    def _on_set_shape(self, request: SetShape.Request, response: SetShape.Response):
+        try:
+            ok, message = self._apply(shape_from_msg(request.shape))
+        except ShapeError as exc:
+            ok, message = False, f'rejected shape: {exc}'
+        response.success = ok
+        response.message = message
+        response.version = self.mission.shape_version
+        return response
+
+    def _on_state(self, msg: AgentState) -> None:
+        self.mission.agent_seen(int(msg.id), self._now())
+
+    def _on_timer(self) -> None:
+        now = self._now()
+        if self._start is None:
+            self._start = now
+        while (self._next_step < len(self._sequence)
+               and now - self._start >= self._sequence[self._next_step].time):
+            self._apply(self._sequence[self._next_step].shape)
+            self._next_step += 1
+        goal_version = self.mission.goal_version
+        self.mission.check_liveness(now)
+        if self.mission.goal_version != goal_version and not self.params['decentralized']:
+            self.get_logger().warning(self.mission.events[-1])
+            self._publish_goals()
+
+
+def main(args=None) -> None:
+    """Run the mission node (``ros2 run swarm_mission mission_node``)."""
+    rclpy.init(args=args)
+    try:
+        node = MissionNode()
+    except (ShapeError, PartitionError, RobotTypeError) as exc:
+        print(f'mission_node: {exc}', file=sys.stderr)
+        rclpy.try_shutdown()
+        sys.exit(2)
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main(sys.argv)

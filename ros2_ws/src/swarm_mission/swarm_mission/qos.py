@@ -1,0 +1,25 @@
+"""Named QoS profiles shared by every swarm node, as plain keyword arguments.
+
+Nodes build them with ``rclpy.qos.QoSProfile(**PROFILE)``. The integers are the values
+of rclpy's ``QoSHistoryPolicy``, ``QoSReliabilityPolicy`` and ``QoSDurabilityPolicy``
+enums (checked by a unit test), kept here so that this module stays free of rclpy.
+"""
+
+KEEP_LAST = 1
+RELIABLE = 1
+BEST_EFFORT = 2
+TRANSIENT_LOCAL = 1
+VOLATILE = 2
+
+# Shapes and goals: late joiners get the latest version (latched, as in navigation2).
+LATCHED = {'history': KEEP_LAST, 'depth': 1, 'reliability': RELIABLE,
+           'durability': TRANSIENT_LOCAL}
+# High-rate sensor data and commands: the newest sample matters, old ones are useless.
+SENSOR = {'history': KEEP_LAST, 'depth': 5, 'reliability': BEST_EFFORT,
+          'durability': VOLATILE}
+# Radio frames: the medium model decides what is lost, DDS must not add losses.
+RADIO = {'history': KEEP_LAST, 'depth': 200, 'reliability': RELIABLE,
+         'durability': VOLATILE}
+# Introspection (state, routes, truth): reliable, shallow.
+STATE = {'history': KEEP_LAST, 'depth': 10, 'reliability': RELIABLE,
+         'durability': VOLATILE}

@@ -1,0 +1,307 @@
+"""Headless evaluation: N agent brains, the radio medium and point-mass dynamics in one process.
+
+This is the Monte Carlo workhorse of thesis chapter 4. It runs exactly the code of the
+ROS system (``AgentBrain`` built by ``make_brain``, ``RadioMedium``, ``Mission`` with the
+same partitioners, the same sensor noise models) but replaces pybullet and DDS with a
+vectorised point-mass model (``swarm_agent.dynamics``) and direct calls, so a 50-agent
+trial takes seconds.
+
+One control step (``control_dt``, 50 Hz by default) does, in order: every living brain
+steps (inner LQR loop; outer loop at 2 Hz; localization every 3 s) and hands its packets
+to the medium; the dynamics integrate the forces; the medium delivers due packets; the
+IMU, range and GPS models feed the brains.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+import time as wallclock
+
+import numpy as np
+
+from swarm_agent.agent_factory import make_brain
+from swarm_agent.brain import AgentBrain
+from swarm_agent.dynamics import PointMassSwarm
+from swarm_mission.mission import Mission, MissionConfig, SequenceStep
+from swarm_mission.robot_types import load_robot_types
+from swarm_mission.shapes import Shape
+from swarm_sim.fleet import random_fleet, RobotSpec
+from swarm_sim.medium import MediumConfig, RadioMedium
+from swarm_sim.metrics import run_metrics
+from swarm_sim.sensors import GpsModel, ImuModel
+
+METHODS = ('bubble', 'fractal', 'forces')
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot run (unknown method, too many beacons, ...)."""
+
+
+@dataclass
+class Scenario:
+    """One trial's setup. Defaults: the thesis scenario of chapter 4."""
+
+    shape: Shape
+    method: str = 'bubble'
+    type_counts: dict[int, int] = field(default_factory=lambda: {1: 20, 2: 20, 3: 10})
+    n_beacons: int = 8
+    seed: int = 0
+    duration_s: float = 600.0
+    control_dt: float = 0.02              # inner loop period (50 Hz)
+    medium_update_s: float = 0.1          # how often links are recomputed
+    range_period_s: float = 1.0           # TOA ranging rate
+    gps_period_s: float = 1.0             # beacon GPS rate
+    record_period_s: float = 0.5          # truth recording rate (2 Hz)
+    settle_hold_s: float = 5.0            # stop after this long settled (after the last change)
+    localization_period_s: float = 3.0
+    sequence: Sequence[SequenceStep] = ()  # further shapes at given times (4.3.4)
+    removals: Sequence[tuple[float, Sequence[int]]] = ()  # (time, agent ids) to remove
+    medium: MediumConfig = field(default_factory=MediumConfig)
+    fleet: Sequence[RobotSpec] | None = None
+    half_size: float = 50.0
+    partition_seed: int | None = None
+
+    def validate(self) -> None:
+        """Raise ScenarioError with a one-line reason for an impossible setup."""
+        n = sum(self.type_counts.values())
+        if self.method not in METHODS:
+            raise ScenarioError(f'unknown method {self.method!r}; use one of {METHODS}')
+        if n <= 0:
+            raise ScenarioError('the swarm needs at least one agent')
+        if not 0 <= self.n_beacons <= n:
+            raise ScenarioError(f'{self.n_beacons} beacons requested but the swarm has only '
+                                f'{n} agents; use --beacons between 0 and {n}')
+
+
+@dataclass
+class TrialRecord:
+    """Truth and belief over time, recorded at ``record_period_s``."""
+
+    times: np.ndarray                 # (T,)
+    positions: np.ndarray             # (T, N, 2) true
+    velocities: np.ndarray            # (T, N, 2) true
+    estimates: np.ndarray             # (T, N, 2) believed
+    modes: np.ndarray                 # (T, N)
+    alive: np.ndarray                 # (T, N) bool
+    goal_ids: np.ndarray              # (T, N)
+    digests: np.ndarray               # (T, N) assignment digests
+    types: np.ndarray                 # (N,)
+    beacons: np.ndarray               # (N,) bool
+    goals: list                       # final goals
+    shapes: list                      # (time, Shape) in order of application
+    metrics: dict
+    events: list[str]
+
+
+class HeadlessSwarm:
+    """Steps one scenario; see the module docstring."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        scenario.validate()
+        self.scenario = scenario
+        self.rng = np.random.default_rng(scenario.seed)
+        self.types = load_robot_types()
+        obstacles = list(scenario.shape.obstacles)
+        fleet = list(scenario.fleet) if scenario.fleet is not None else random_fleet(
+            scenario.type_counts, scenario.n_beacons, self.rng,
+            half_size=scenario.half_size, obstacles=obstacles)
+        self.fleet = fleet
+        self.n = len(fleet)
+        self.ids = [r.id for r in fleet]
+        self.index = {r.id: i for i, r in enumerate(fleet)}
+        self.robot_types = np.array([r.type for r in fleet])
+        self.is_beacon = np.array([r.is_beacon for r in fleet])
+        start = np.array([[r.x, r.y] for r in fleet], dtype=float)
+        self.dynamics = PointMassSwarm([self.types[r.type] for r in fleet], start)
+        self.medium = RadioMedium(scenario.medium, self.rng, obstacles)
+        self.imu = ImuModel(self.n, self.rng)
+        self.gps = GpsModel(self.rng)
+        self.brains: list[AgentBrain | None] = [
+            make_brain(agent_id=r.id, agent_type=r.type, is_beacon=r.is_beacon,
+                       method=scenario.method, initial_position=(r.x, r.y),
+                       seed=scenario.seed * 100_003 + r.id,
+                       localization_period_s=scenario.localization_period_s)
+            for r in fleet]
+        self.alive = np.ones(self.n, dtype=bool)
+        self.mission = Mission(
+            MissionConfig(method=scenario.method,
+                          seed=scenario.seed if scenario.partition_seed is None
+                          else scenario.partition_seed),
+            agent_types={r.id: r.type for r in fleet},
+            radii={t: r.coverage_radius for t, r in self.types.items()})
+        self.shapes: list[tuple[float, Shape]] = []
+
+    # ------------------------------------------------------------------ mission
+    def _apply_shape(self, t: float, shape: Shape) -> None:
+        self.mission.set_shape(shape)
+        self.shapes.append((t, shape))
+        self._broadcast_mission()
+
+    def _broadcast_mission(self) -> None:
+        for brain in self.brains:
+            if brain is not None:
+                brain.set_shape(self.mission.shape, self.mission.shape_version)
+                brain.set_goals(self.mission.goals, self.mission.goal_version)
+
+    def _remove(self, t: float, agent_ids: Sequence[int]) -> None:
+        for agent in agent_ids:
+            i = self.index.get(agent)
+            if i is None or not self.alive[i]:
+                continue
+            self.alive[i] = False
+            self.brains[i] = None
+            self.medium.remove(agent)
+            self.mission.events.append(f't={t:.1f} s: agent {agent} removed')
+
+    # ------------------------------------------------------------------ run
+    def run(self, progress: Callable[[float, float], None] | None = None) -> TrialRecord:
+        """Run until settled for ``settle_hold_s`` after the last change, or the duration."""
+        sc = self.scenario
+        wall0 = wallclock.perf_counter()
+        dt = sc.control_dt
+        self._apply_shape(0.0, sc.shape)
+        pending_shapes = sorted(sc.sequence, key=lambda s: s.time)
+        pending_removals = sorted(sc.removals, key=lambda r: r[0])
+        last_change = 0.0
+        steps = int(round(sc.duration_s / dt))
+        every = {name: max(1, int(round(period / dt))) for name, period in (
+            ('medium', sc.medium_update_s), ('range', sc.range_period_s),
+            ('gps', sc.gps_period_s), ('record', sc.record_period_s))}
+        rec: dict[str, list] = {k: [] for k in (
+            'times', 'positions', 'velocities', 'estimates', 'modes', 'alive', 'goal_ids',
+            'digests')}
+        beacon_ids = [self.ids[i] for i in np.flatnonzero(self.is_beacon)]
+        forces = np.zeros((self.n, 2))
+        settled_since: float | None = None
+        self.medium.update_positions(self.ids, self.dynamics.positions)
+        for k in range(steps + 1):
+            t = k * dt
+            while pending_shapes and pending_shapes[0].time <= t:
+                self._apply_shape(t, pending_shapes.pop(0).shape)
+                last_change, settled_since = t, None
+            while pending_removals and pending_removals[0][0] <= t:
+                self._remove(t, pending_removals.pop(0)[1])
+                last_change, settled_since = t, None
+            # Brains: control step and packets out.
+            for i, brain in enumerate(self.brains):
+                if brain is None:
+                    forces[i] = 0.0
+                    continue
+                out = brain.step(t)
+                forces[i] = out.force
+                for packet in out.packets:
+                    self.medium.transmit(t, packet)
+            # Physics.
+            self.dynamics.step(dt, np.where(self.alive[:, None], forces, 0.0))
+            if k % every['medium'] == 0:
+                living = np.flatnonzero(self.alive)
+                self.medium.update_positions([self.ids[i] for i in living],
+                                             self.dynamics.positions[living])
+            for receiver, packet in self.medium.deliver(t):
+                brain = self.brains[self.index[receiver]]
+                if brain is not None:
+                    brain.on_packet(t, packet)
+            # Sensors.
+            accel = self.imu.measure(self.dynamics.accelerations())
+            for i, brain in enumerate(self.brains):
+                if brain is not None:
+                    brain.on_imu(t, accel[i])
+            if k % every['range'] == 0:
+                for i, brain in enumerate(self.brains):
+                    if brain is not None and not self.is_beacon[i]:
+                        brain.on_ranges(t, self.medium.toa_ranges(self.ids[i], beacon_ids))
+            if k % every['gps'] == 0:
+                for i, brain in enumerate(self.brains):
+                    if brain is not None and self.is_beacon[i]:
+                        fix, std = self.gps.measure(self.dynamics.positions[i])
+                        brain.on_gps(t, fix, std)
+            # Liveness for self-repair: a removed agent simply stops being seen.
+            if k % every['record'] == 0:
+                for i in np.flatnonzero(self.alive):
+                    self.mission.agent_seen(self.ids[i], t)
+                version = self.mission.goal_version
+                self.mission.check_liveness(t)
+                if self.mission.goal_version != version:
+                    self._broadcast_mission()
+                    last_change, settled_since = t, None
+                self._record(t, rec)
+                if progress is not None:
+                    progress(t, sc.duration_s)
+                if self._all_settled():
+                    settled_since = t if settled_since is None else settled_since
+                    if t - settled_since >= sc.settle_hold_s and t - last_change >= \
+                            sc.settle_hold_s:
+                        break
+                else:
+                    settled_since = None
+        return self._finish(rec, wallclock.perf_counter() - wall0)
+
+    def _all_settled(self) -> bool:
+        from swarm_sim.metrics import inside_mask, SETTLE_SPEED
+        living = np.flatnonzero(self.alive)
+        pos = self.dynamics.positions[living]
+        speed = np.linalg.norm(self.dynamics.velocities[living], axis=1)
+        return bool(np.all(inside_mask(self.mission.shape, pos) & (speed < SETTLE_SPEED)))
+
+    def _record(self, t: float, rec: dict[str, list]) -> None:
+        snaps = [b.snapshot() if b is not None else None for b in self.brains]
+        rec['times'].append(t)
+        rec['positions'].append(self.dynamics.positions.copy())
+        rec['velocities'].append(self.dynamics.velocities.copy())
+        rec['estimates'].append(np.array([s.position if s else [np.nan, np.nan]
+                                          for s in snaps]))
+        rec['modes'].append(np.array([s.mode if s else -1 for s in snaps]))
+        rec['alive'].append(self.alive.copy())
+        rec['goal_ids'].append(np.array([s.goal_id if s else -1 for s in snaps]))
+        rec['digests'].append(np.array([s.assignment_digest if s else 0 for s in snaps]))
+
+    def _finish(self, rec: dict[str, list], wall_s: float) -> TrialRecord:
+        arrays = {k: np.asarray(v) for k, v in rec.items()}
+        shape = self.mission.shape
+        radii = {t: r.coverage_radius for t, r in self.types.items()}
+        metrics = run_metrics(arrays['times'], arrays['positions'], arrays['velocities'],
+                              self.robot_types, shape, radii, alive=arrays['alive'])
+        metrics.update(self._belief_metrics(arrays))
+        metrics['wall_seconds'] = wall_s
+        metrics['real_time_factor'] = float(arrays['times'][-1] / max(wall_s, 1e-9))
+        metrics['medium'] = dict(vars(self.medium.stats)) if hasattr(
+            self.medium.stats, '__dict__') else dict(self.medium.stats)
+        if self.mission.last_result is not None:
+            metrics['goal_epsilon_t'] = float(self.mission.last_result.epsilon_t)
+            metrics['goal_epsilon_g'] = float(self.mission.last_result.epsilon_g)
+        return TrialRecord(types=self.robot_types, beacons=self.is_beacon,
+                           goals=list(self.mission.goals), shapes=self.shapes,
+                           metrics=metrics, events=list(self.mission.events), **arrays)
+
+    def _belief_metrics(self, a: dict[str, np.ndarray]) -> dict[str, float]:
+        """Localization error and assignment agreement from the record."""
+        err = np.linalg.norm(a['estimates'] - a['positions'], axis=2)
+        err = np.where(a['alive'], err, np.nan)
+        non_beacon = ~self.is_beacon
+        loc = err[:, non_beacon] if non_beacon.any() else err
+        # Agents of one type that used the same rows hold the same digest: agreement is
+        # the share of assigned agents whose digest is their type's most common one.
+        agree = []
+        for digests, alive, modes in zip(a['digests'], a['alive'], a['modes']):
+            for t in np.unique(self.robot_types):
+                d = digests[alive & (modes == 0) & (digests != 0) & (self.robot_types == t)]
+                if len(d):
+                    agree.append(float(np.mean(d == _mode_value(d))))
+        final_goals = a['goal_ids'][-1][a['alive'][-1]]
+        assigned = final_goals[final_goals >= 0]
+        return {
+            'max_localization_error': float(np.nanmax(loc)) if np.isfinite(loc).any()
+            else float('nan'),
+            'rms_localization_error': float(np.sqrt(np.nanmean(loc ** 2)))
+            if np.isfinite(loc).any() else float('nan'),
+            'assignment_agreement': float(np.mean(agree)) if agree else float('nan'),
+            'duplicate_goal_claims': int(len(assigned) - len(np.unique(assigned))),
+            'final_modes_normal': float(np.mean(a['modes'][-1][a['alive'][-1]] == 0)),
+        }
+
+
+def _mode_value(values: np.ndarray) -> int:
+    """Most frequent value (smallest on ties)."""
+    uniq, counts = np.unique(values, return_counts=True)
+    return int(uniq[np.argmax(counts)])

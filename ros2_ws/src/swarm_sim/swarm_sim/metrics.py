@@ -1,0 +1,125 @@
+"""Run metrics of thesis chapter 4, from ground-truth trajectories.
+
+Shared by the headless evaluator and the ROS launcher, so both report the same keys:
+
+- ``total_displacement``: summed length of every robot's true trajectory (4.3.2).
+- ``settling_time``: ``t_final - t_start`` where from ``t_final`` on every robot is inside
+  the formation shape and slower than 0.01 m/s (eq. 4.1); ``None`` if never settled.
+- ``epsilon_t`` / ``epsilon_g``: mesh irregularities of the final positions (eqs.
+  3.104, 3.106) by ``swarm_mission.mesh_quality``.
+- ``displacement_lower_bound``: the optimal assignment's summed shortest paths (in each
+  type's free space) from the initial positions to the final positions, a bound no
+  method can beat for the same final formation.
+- ``min_separation_ratio``: the smallest distance between two robots divided by the sum
+  of their coverage radii over the run (below 1 means coverage circles overlapped).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+import math
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.spatial import cKDTree
+import shapely
+
+from swarm_agent.costs import VisibilityGraph
+from swarm_agent.free_space import grow_obstacles
+from swarm_mission.mesh_quality import epsilon_g, epsilon_t
+from swarm_mission.shapes import Shape
+
+SETTLE_SPEED = 0.01  # m/s, eq. 4.1
+
+
+def path_lengths(positions: np.ndarray) -> np.ndarray:
+    """Length of each robot's polyline; ``positions`` is (T, N, 2)."""
+    if len(positions) < 2:
+        return np.zeros(positions.shape[1])
+    return np.linalg.norm(np.diff(positions, axis=0), axis=2).sum(axis=0)
+
+
+def inside_mask(shape: Shape, points: np.ndarray) -> np.ndarray:
+    """Which points lie inside the formation region (vectorised)."""
+    return shapely.contains_xy(shape.region, points[..., 0], points[..., 1])
+
+
+def settling_time(times: np.ndarray, positions: np.ndarray, velocities: np.ndarray,
+                  shape: Shape, alive: np.ndarray | None = None,
+                  t_start: float = 0.0, speed: float = SETTLE_SPEED) -> float | None:
+    """Eq. 4.1: first time from which all (alive) robots stay inside and slow; else None."""
+    speeds = np.linalg.norm(velocities, axis=2)
+    ok = inside_mask(shape, positions) & (speeds < speed)
+    if alive is not None:
+        ok |= ~alive
+    all_ok = ok.all(axis=1)
+    if not all_ok[-1]:
+        return None
+    bad = np.flatnonzero(~all_ok)
+    first = 0 if len(bad) == 0 else bad[-1] + 1
+    return float(times[first] - t_start)
+
+
+def min_separation_ratio(positions: np.ndarray, radii: np.ndarray) -> float:
+    """Smallest pairwise distance / (r_i + r_j) over all recorded frames."""
+    best = math.inf
+    max_r = float(np.max(radii))
+    for frame in positions:
+        tree = cKDTree(frame)
+        pairs = tree.query_pairs(2.0 * max_r * 1.5, output_type='ndarray')
+        if len(pairs) == 0:
+            continue
+        d = np.linalg.norm(frame[pairs[:, 0]] - frame[pairs[:, 1]], axis=1)
+        ratio = d / (radii[pairs[:, 0]] + radii[pairs[:, 1]])
+        best = min(best, float(ratio.min()))
+    return best
+
+
+def displacement_lower_bound(initial: np.ndarray, final: np.ndarray, types: np.ndarray,
+                             shape: Shape, radii: Mapping[int, float]) -> float:
+    """Optimal assignment of initial to final positions per type, by free-space paths."""
+    total = 0.0
+    for t in np.unique(types):
+        idx = np.flatnonzero(types == t)
+        graph = VisibilityGraph(grow_obstacles(list(shape.obstacles), radii[int(t)]))
+        cost = graph.cost_matrix(initial[idx], final[idx])
+        cost = np.where(np.isfinite(cost), cost, 1e9)
+        rows, cols = linear_sum_assignment(cost)
+        total += float(cost[rows, cols].sum())
+    return total
+
+
+def mesh_metrics(points: np.ndarray, shape: Shape) -> dict[str, float]:
+    """epsilon_t and epsilon_g of the final positions, both definitions (see mesh_quality)."""
+    if len(points) < 4:
+        return {'epsilon_t': float('nan'), 'epsilon_g': float('nan'),
+                'epsilon_t_with_boundary': float('nan'),
+                'epsilon_g_with_boundary': float('nan')}
+    return {
+        'epsilon_t': float(epsilon_t(points, shape)),
+        'epsilon_g': float(epsilon_g(points, shape)),
+        'epsilon_t_with_boundary': float(epsilon_t(points, shape, count_boundary=True)),
+        'epsilon_g_with_boundary': float(epsilon_g(points, shape, count_boundary=True)),
+    }
+
+
+def run_metrics(times: np.ndarray, positions: np.ndarray, velocities: np.ndarray,
+                types: Sequence[int], shape: Shape, radii: Mapping[int, float],
+                alive: np.ndarray | None = None) -> dict[str, float | None]:
+    """All per-trial metrics from a truth record (T frames, N robots)."""
+    types = np.asarray(types)
+    radius = np.array([radii[int(t)] for t in types])
+    alive_now = np.ones(len(types), bool) if alive is None else alive[-1]
+    final = positions[-1][alive_now]
+    metrics: dict[str, float | None] = {
+        'total_displacement': float(path_lengths(positions).sum()),
+        'settling_time': settling_time(times, positions, velocities, shape, alive),
+        'displacement_lower_bound': displacement_lower_bound(
+            positions[0][alive_now], final, types[alive_now], shape, radii),
+        'min_separation_ratio': min_separation_ratio(positions[:, alive_now],
+                                                     radius[alive_now]),
+        'fraction_inside': float(inside_mask(shape, final).mean()) if len(final) else 0.0,
+        'duration': float(times[-1] - times[0]),
+    }
+    metrics.update(mesh_metrics(final, shape))
+    return metrics

@@ -1,0 +1,213 @@
+#!/usr/bin/env python3
+"""Headless Monte Carlo evaluation of a formation method (thesis 4.3).
+
+Runs T trials of the scenario with random initial positions in the +/-50 m workspace,
+with the same brains, radio medium, partitioners and sensor models as the ROS system
+(``swarm_sim.headless``), and writes into --out:
+
+  metrics.json      {"trials": [{...}, ...], "mean": {...}, "scenario": {...}}
+  table.md          a table like thesis Tables 4.5-4.9
+  boxplots.png      total displacement, settling time, epsilon_t, epsilon_g (Figs. 4.17-4.34)
+  trajectories.png  the first trial's true trajectories, shape and final goals
+
+Example:
+  scripts/env.sh python scripts/evaluate.py --method bubble --shape circle_314 \\
+      --agents 50 --beacons 8 --trials 4 --workers 2 --out results/eval_bubble
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures as futures
+import json
+import math
+import pathlib
+import sys
+
+import numpy as np
+
+from swarm_mission.mission import load_sequence
+from swarm_mission.partition import PartitionError
+from swarm_mission.robot_types import default_type_counts, parse_type_counts, RobotTypeError
+from swarm_mission.shapes import load_shape, ShapeError
+from swarm_sim.headless import HeadlessSwarm, Scenario, ScenarioError
+from swarm_sim.medium import MediumConfig
+
+SUMMARY_KEYS = ('total_displacement', 'displacement_lower_bound', 'settling_time',
+                'epsilon_t', 'epsilon_g', 'min_separation_ratio', 'max_localization_error',
+                'assignment_agreement', 'fraction_inside', 'real_time_factor')
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--method', choices=('bubble', 'fractal', 'forces'), default='bubble')
+    parser.add_argument('--shape', default='circle_314',
+                        help='built-in shape name or .json/.svg/.png file')
+    parser.add_argument('--shape-scale', type=float, default=1.0)
+    parser.add_argument('--agents', type=int, default=50)
+    parser.add_argument('--types', default='',
+                        help='composition TYPE:COUNT,... (default: the thesis 40/40/20 %%)')
+    parser.add_argument('--beacons', type=int, default=None,
+                        help='beacon count (default: 15 %% of the agents, as in the thesis)')
+    parser.add_argument('--trials', type=int, default=1)
+    parser.add_argument('--seed', type=int, default=0)
+    parser.add_argument('--workers', type=int, default=1)
+    parser.add_argument('--duration', type=float, default=600.0,
+                        help='maximum simulated seconds per trial')
+    parser.add_argument('--sequence', default='', help='YAML/JSON shape sequence file')
+    parser.add_argument('--remove', action='append', default=[],
+                        help='remove agents mid-run, e.g. --remove 60:3,17 (time:ids)')
+    parser.add_argument('--loss', type=float, default=0.0, help='radio packet loss 0..1')
+    parser.add_argument('--control-rate', type=float, default=50.0,
+                        help='inner loop rate in Hz')
+    parser.add_argument('--out', required=True, help='results directory')
+    return parser.parse_args(argv)
+
+
+def build_scenario(args: argparse.Namespace, seed: int) -> Scenario:
+    """Scenario of one trial; raises ShapeError/ScenarioError/RobotTypeError on bad input."""
+    shape = load_shape(args.shape, scale=args.shape_scale)
+    counts = parse_type_counts(args.types) if args.types else default_type_counts(args.agents)
+    if sum(counts.values()) != args.agents:
+        raise ScenarioError(f'--types {args.types} sums to {sum(counts.values())} agents but '
+                            f'--agents is {args.agents}')
+    beacons = args.beacons if args.beacons is not None else max(3, round(0.15 * args.agents))
+    sequence = load_sequence(args.sequence, scale=args.shape_scale) if args.sequence else ()
+    if sequence and sequence[0].time <= 0.0:
+        shape, sequence = sequence[0].shape, sequence[1:]
+    removals = []
+    for spec in args.remove:
+        try:
+            when, ids = spec.split(':')
+            removals.append((float(when), [int(i) for i in ids.split(',')]))
+        except ValueError:
+            raise ScenarioError(f'bad --remove {spec!r}; write TIME:ID,ID like 60:3,17') from None
+    return Scenario(shape=shape, method=args.method, type_counts=counts, n_beacons=beacons,
+                    seed=seed, duration_s=args.duration, sequence=sequence,
+                    removals=removals, medium=MediumConfig(loss=args.loss),
+                    control_dt=1.0 / args.control_rate)
+
+
+def run_trial(args: argparse.Namespace, seed: int):
+    """Run one trial (in a worker process); return (metrics, record or None)."""
+    record = HeadlessSwarm(build_scenario(args, seed)).run()
+    record.metrics['seed'] = seed
+    return record
+
+
+def summarize(trials: list[dict]) -> dict:
+    """Means over trials of every numeric metric (None/NaN ignored, counted)."""
+    mean = {}
+    for key in sorted({k for t in trials for k in t}):
+        values = [t[key] for t in trials if isinstance(t.get(key), (int, float))
+                  and not isinstance(t.get(key), bool)
+                  and t[key] is not None and math.isfinite(t[key])]
+        if values:
+            mean[key] = float(np.mean(values))
+    settled = [t.get('settling_time') is not None for t in trials]
+    mean['settled_fraction'] = float(np.mean(settled)) if trials else 0.0
+    return mean
+
+
+def write_table(path: pathlib.Path, method: str, mean: dict) -> None:
+    """A markdown table like thesis Tables 4.5-4.9."""
+    def fmt(key: str, digits: int) -> str:
+        v = mean.get(key)
+        return f'{v:.{digits}f}' if v is not None else 'n/a'
+
+    lines = ['| Method | Total displacement [m] | Lower bound [m] | Settling time [s] | '
+             'eps_t | eps_g |', '|---|---|---|---|---|---|',
+             f'| {method} | {fmt("total_displacement", 0)} | '
+             f'{fmt("displacement_lower_bound", 0)} | {fmt("settling_time", 0)} | '
+             f'{fmt("epsilon_t", 2)} | {fmt("epsilon_g", 2)} |']
+    path.write_text('\n'.join(lines) + '\n', encoding='utf-8')
+
+
+def plot(out: pathlib.Path, trials: list[dict], record, method: str) -> None:
+    """Box plots over trials and the first trial's trajectories."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    keys = [('total_displacement', 'total displacement [m]'),
+            ('settling_time', 'settling time [s]'), ('epsilon_t', 'epsilon_t'),
+            ('epsilon_g', 'epsilon_g')]
+    fig, axes = plt.subplots(1, len(keys), figsize=(14, 3.5))
+    for ax, (key, label) in zip(axes, keys):
+        values = [t[key] for t in trials if t.get(key) is not None]
+        ax.boxplot(values if values else [[np.nan]], labels=[method])
+        ax.set_title(label)
+    fig.tight_layout()
+    fig.savefig(out / 'boxplots.png', dpi=110)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(7, 7))
+    for _, shape in record.shapes:
+        x, y = shape.region.exterior.xy
+        ax.plot(x, y, color='tab:blue', lw=1)
+        for o in shape.obstacles:
+            ox, oy = o.exterior.xy
+            ax.fill(ox, oy, color='tab:green', alpha=0.5)
+    colours = {1: 'tab:red', 2: 'tab:orange', 3: 'tab:purple'}
+    for i in range(record.positions.shape[1]):
+        c = colours.get(int(record.types[i]), 'k')
+        ax.plot(record.positions[:, i, 0], record.positions[:, i, 1], color=c, lw=0.6,
+                alpha=0.7)
+        ax.plot(*record.positions[-1, i], 'o', color=c, ms=3)
+    for g in record.goals:
+        ax.add_patch(matplotlib.patches.Circle((g.x, g.y), g.radius, fill=False, color='k',
+                                               lw=0.5))
+    ax.set_aspect('equal')
+    ax.set_title(f'{method}: trajectories (trial seed {trials[0]["seed"]})')
+    ax.set_xlabel('x [m]')
+    ax.set_ylabel('y [m]')
+    fig.savefig(out / 'trajectories.png', dpi=110)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    out = pathlib.Path(args.out)
+    try:
+        if args.trials < 1 or args.workers < 1:
+            raise ScenarioError('--trials and --workers must be at least 1')
+        build_scenario(args, args.seed).validate()
+    except (ShapeError, ScenarioError, RobotTypeError, PartitionError) as exc:
+        print(f'evaluate.py: {exc}', file=sys.stderr)
+        return 2
+    out.mkdir(parents=True, exist_ok=True)
+    seeds = [args.seed + k for k in range(args.trials)]
+    from tqdm import tqdm
+
+    trials: list[dict] = []
+    first = None
+    try:
+        with futures.ProcessPoolExecutor(max_workers=args.workers) as pool:
+            jobs = {pool.submit(run_trial, args, s): s for s in seeds}
+            for job in tqdm(futures.as_completed(jobs), total=len(jobs), unit='trial',
+                            desc=f'{args.method} x{args.agents}'):
+                record = job.result()
+                trials.append(record.metrics)
+                if record.metrics['seed'] == seeds[0]:
+                    first = record
+    except (PartitionError, ShapeError, ScenarioError) as exc:
+        print(f'evaluate.py: {exc}', file=sys.stderr)
+        return 2
+    trials.sort(key=lambda t: t['seed'])
+    mean = summarize(trials)
+    (out / 'metrics.json').write_text(json.dumps(
+        {'scenario': {k: v for k, v in vars(args).items()}, 'trials': trials, 'mean': mean},
+        indent=2, default=str), encoding='utf-8')
+    write_table(out / 'table.md', args.method, mean)
+    plot(out, trials, first, args.method)
+    print(f'{args.method}: {len(trials)} trials, displacement '
+          f'{mean.get("total_displacement", float("nan")):.0f} m '
+          f'(bound {mean.get("displacement_lower_bound", float("nan")):.0f} m), settling '
+          f'{mean.get("settling_time", float("nan")):.0f} s, eps_t '
+          f'{mean.get("epsilon_t", float("nan")):.2f}, eps_g '
+          f'{mean.get("epsilon_g", float("nan")):.2f} -> {out}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
