@@ -19,23 +19,21 @@ from __future__ import annotations
 
 import argparse
 import concurrent.futures as futures
-import json
-import math
 import pathlib
 import sys
-
-import numpy as np
 
 from swarm_mission.mission import load_sequence
 from swarm_mission.partition import PartitionError
 from swarm_mission.robot_types import default_type_counts, parse_type_counts, RobotTypeError
 from swarm_mission.shapes import load_shape, ShapeError
+from swarm_sim import plots
 from swarm_sim.headless import HeadlessSwarm, Scenario, ScenarioError
 from swarm_sim.medium import MediumConfig
+from swarm_sim.report import run_report, write_metrics
 
-SUMMARY_KEYS = ('total_displacement', 'displacement_lower_bound', 'settling_time',
-                'epsilon_t', 'epsilon_g', 'min_separation_ratio', 'max_localization_error',
-                'assignment_agreement', 'fraction_inside', 'real_time_factor')
+BOX_KEYS = (('total_displacement', 'total displacement [m]'),
+            ('settling_time', 'settling time [s]'), ('epsilon_t', 'epsilon_t'),
+            ('epsilon_g', 'epsilon_g'))
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -95,20 +93,6 @@ def run_trial(args: argparse.Namespace, seed: int):
     return record
 
 
-def summarize(trials: list[dict]) -> dict:
-    """Means over trials of every numeric metric (None/NaN ignored, counted)."""
-    mean = {}
-    for key in sorted({k for t in trials for k in t}):
-        values = [t[key] for t in trials if isinstance(t.get(key), (int, float))
-                  and not isinstance(t.get(key), bool)
-                  and t[key] is not None and math.isfinite(t[key])]
-        if values:
-            mean[key] = float(np.mean(values))
-    settled = [t.get('settling_time') is not None for t in trials]
-    mean['settled_fraction'] = float(np.mean(settled)) if trials else 0.0
-    return mean
-
-
 def write_table(path: pathlib.Path, method: str, mean: dict) -> None:
     """A markdown table like thesis Tables 4.5-4.9."""
     def fmt(key: str, digits: int) -> str:
@@ -123,46 +107,11 @@ def write_table(path: pathlib.Path, method: str, mean: dict) -> None:
     path.write_text('\n'.join(lines) + '\n', encoding='utf-8')
 
 
-def plot(out: pathlib.Path, trials: list[dict], record, method: str) -> None:
-    """Box plots over trials and the first trial's trajectories."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
-    keys = [('total_displacement', 'total displacement [m]'),
-            ('settling_time', 'settling time [s]'), ('epsilon_t', 'epsilon_t'),
-            ('epsilon_g', 'epsilon_g')]
-    fig, axes = plt.subplots(1, len(keys), figsize=(14, 3.5))
-    for ax, (key, label) in zip(axes, keys):
-        values = [t[key] for t in trials if t.get(key) is not None]
-        ax.boxplot(values if values else [[np.nan]], labels=[method])
-        ax.set_title(label)
-    fig.tight_layout()
-    fig.savefig(out / 'boxplots.png', dpi=110)
-    plt.close(fig)
-
-    fig, ax = plt.subplots(figsize=(7, 7))
-    for _, shape in record.shapes:
-        x, y = shape.region.exterior.xy
-        ax.plot(x, y, color='tab:blue', lw=1)
-        for o in shape.obstacles:
-            ox, oy = o.exterior.xy
-            ax.fill(ox, oy, color='tab:green', alpha=0.5)
-    colours = {1: 'tab:red', 2: 'tab:orange', 3: 'tab:purple'}
-    for i in range(record.positions.shape[1]):
-        c = colours.get(int(record.types[i]), 'k')
-        ax.plot(record.positions[:, i, 0], record.positions[:, i, 1], color=c, lw=0.6,
-                alpha=0.7)
-        ax.plot(*record.positions[-1, i], 'o', color=c, ms=3)
-    for g in record.goals:
-        ax.add_patch(matplotlib.patches.Circle((g.x, g.y), g.radius, fill=False, color='k',
-                                               lw=0.5))
-    ax.set_aspect('equal')
-    ax.set_title(f'{method}: trajectories (trial seed {trials[0]["seed"]})')
-    ax.set_xlabel('x [m]')
-    ax.set_ylabel('y [m]')
-    fig.savefig(out / 'trajectories.png', dpi=110)
-    plt.close(fig)
+def figures(out: pathlib.Path, trials: list[dict], record, method: str) -> None:
+    """Box plots over trials and the first trial's run figures."""
+    plots.boxplots(out / 'boxplots.png', {method: trials}, BOX_KEYS)
+    run_report(out, vars(record), record.types, record.beacons,
+               [shape for _, shape in record.shapes], record.goals)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -194,12 +143,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f'evaluate.py: {exc}', file=sys.stderr)
         return 2
     trials.sort(key=lambda t: t['seed'])
-    mean = summarize(trials)
-    (out / 'metrics.json').write_text(json.dumps(
-        {'scenario': {k: v for k, v in vars(args).items()}, 'trials': trials, 'mean': mean},
-        indent=2, default=str), encoding='utf-8')
+    mean = write_metrics(out, trials, vars(args))
     write_table(out / 'table.md', args.method, mean)
-    plot(out, trials, first, args.method)
+    figures(out, trials, first, args.method)
     print(f'{args.method}: {len(trials)} trials, displacement '
           f'{mean.get("total_displacement", float("nan")):.0f} m '
           f'(bound {mean.get("displacement_lower_bound", float("nan")):.0f} m), settling '

@@ -28,7 +28,7 @@ from swarm_mission.robot_types import load_robot_types
 from swarm_mission.shapes import Shape
 from swarm_sim.fleet import random_fleet, RobotSpec
 from swarm_sim.medium import MediumConfig, RadioMedium
-from swarm_sim.metrics import run_metrics
+from swarm_sim.metrics import belief_metrics, inside_mask, run_metrics, SETTLE_SPEED
 from swarm_sim.sensors import GpsModel, ImuModel
 
 METHODS = ('bubble', 'fractal', 'forces')
@@ -238,7 +238,6 @@ class HeadlessSwarm:
         return self._finish(rec, wallclock.perf_counter() - wall0)
 
     def _all_settled(self) -> bool:
-        from swarm_sim.metrics import inside_mask, SETTLE_SPEED
         living = np.flatnonzero(self.alive)
         pos = self.dynamics.positions[living]
         speed = np.linalg.norm(self.dynamics.velocities[living], axis=1)
@@ -262,7 +261,7 @@ class HeadlessSwarm:
         radii = {t: r.coverage_radius for t, r in self.types.items()}
         metrics = run_metrics(arrays['times'], arrays['positions'], arrays['velocities'],
                               self.robot_types, shape, radii, alive=arrays['alive'])
-        metrics.update(self._belief_metrics(arrays))
+        metrics.update(belief_metrics(arrays, self.robot_types, self.is_beacon))
         metrics['wall_seconds'] = wall_s
         metrics['real_time_factor'] = float(arrays['times'][-1] / max(wall_s, 1e-9))
         metrics['medium'] = dict(vars(self.medium.stats)) if hasattr(
@@ -273,35 +272,3 @@ class HeadlessSwarm:
         return TrialRecord(types=self.robot_types, beacons=self.is_beacon,
                            goals=list(self.mission.goals), shapes=self.shapes,
                            metrics=metrics, events=list(self.mission.events), **arrays)
-
-    def _belief_metrics(self, a: dict[str, np.ndarray]) -> dict[str, float]:
-        """Localization error and assignment agreement from the record."""
-        err = np.linalg.norm(a['estimates'] - a['positions'], axis=2)
-        err = np.where(a['alive'], err, np.nan)
-        non_beacon = ~self.is_beacon
-        loc = err[:, non_beacon] if non_beacon.any() else err
-        # Agents of one type that used the same rows hold the same digest: agreement is
-        # the share of assigned agents whose digest is their type's most common one.
-        agree = []
-        for digests, alive, modes in zip(a['digests'], a['alive'], a['modes']):
-            for t in np.unique(self.robot_types):
-                d = digests[alive & (modes == 0) & (digests != 0) & (self.robot_types == t)]
-                if len(d):
-                    agree.append(float(np.mean(d == _mode_value(d))))
-        final_goals = a['goal_ids'][-1][a['alive'][-1]]
-        assigned = final_goals[final_goals >= 0]
-        return {
-            'max_localization_error': float(np.nanmax(loc)) if np.isfinite(loc).any()
-            else float('nan'),
-            'rms_localization_error': float(np.sqrt(np.nanmean(loc ** 2)))
-            if np.isfinite(loc).any() else float('nan'),
-            'assignment_agreement': float(np.mean(agree)) if agree else float('nan'),
-            'duplicate_goal_claims': int(len(assigned) - len(np.unique(assigned))),
-            'final_modes_normal': float(np.mean(a['modes'][-1][a['alive'][-1]] == 0)),
-        }
-
-
-def _mode_value(values: np.ndarray) -> int:
-    """Most frequent value (smallest on ties)."""
-    uniq, counts = np.unique(values, return_counts=True)
-    return int(uniq[np.argmax(counts)])

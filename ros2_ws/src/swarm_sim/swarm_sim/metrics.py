@@ -123,3 +123,41 @@ def run_metrics(times: np.ndarray, positions: np.ndarray, velocities: np.ndarray
     }
     metrics.update(mesh_metrics(final, shape))
     return metrics
+
+
+def _most_common(values: np.ndarray) -> int:
+    """Most frequent value (smallest on ties)."""
+    uniq, counts = np.unique(values, return_counts=True)
+    return int(uniq[np.argmax(counts)])
+
+
+def belief_metrics(record: Mapping[str, np.ndarray], types: np.ndarray,
+                   is_beacon: np.ndarray) -> dict[str, float]:
+    """Localization error and assignment agreement from a record of agent beliefs.
+
+    ``record`` holds (T, N) arrays ``estimates`` (T, N, 2), ``positions``, ``alive``,
+    ``modes``, ``digests`` and ``goal_ids``. Agents of one type that used the same cost
+    rows hold the same digest; ``assignment_agreement`` is the mean share of assigned
+    NORMAL agents whose digest is their type's most common one.
+    """
+    types = np.asarray(types)
+    err = np.linalg.norm(record['estimates'] - record['positions'], axis=2)
+    err = np.where(record['alive'], err, np.nan)
+    loc = err[:, ~np.asarray(is_beacon)] if (~np.asarray(is_beacon)).any() else err
+    agree = []
+    for digests, alive, modes in zip(record['digests'], record['alive'], record['modes']):
+        for t in np.unique(types):
+            d = digests[alive & (modes == 0) & (digests != 0) & (types == t)]
+            if len(d):
+                agree.append(float(np.mean(d == _most_common(d))))
+    final_goals = record['goal_ids'][-1][record['alive'][-1]]
+    assigned = final_goals[final_goals >= 0]
+    finite = np.isfinite(loc)
+    return {
+        'max_localization_error': float(np.nanmax(loc)) if finite.any() else float('nan'),
+        'rms_localization_error': float(np.sqrt(np.nanmean(loc ** 2)))
+        if finite.any() else float('nan'),
+        'assignment_agreement': float(np.mean(agree)) if agree else float('nan'),
+        'duplicate_goal_claims': int(len(assigned) - len(np.unique(assigned))),
+        'final_modes_normal': float(np.mean(record['modes'][-1][record['alive'][-1]] == 0)),
+    }

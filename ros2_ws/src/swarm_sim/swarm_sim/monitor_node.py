@@ -1,0 +1,161 @@
+"""monitor_node: records a running swarm for metrics and plots (never read by agents).
+
+Subscribes ``/swarm/truth`` (swarm_msgs/SwarmTruth), ``/swarm/shape``,
+``/swarm/goals`` and every ``/agent_K/state`` (swarm_msgs/AgentState), and keeps a
+2 Hz record of truth and belief: true positions and velocities, estimated positions,
+modes, assigned goals and assignment digests. ``scripts/launch_swarm.py`` runs it
+inside the launcher process and turns the record into ``metrics.json`` and figures.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+
+import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+
+from swarm_mission import qos
+from swarm_mission.conversions import goals_from_msg, shape_from_msg
+from swarm_mission.shapes import ShapeError
+from swarm_msgs.msg import AgentState, FormationShape, GoalArray, SwarmTruth
+
+
+class MonitorNode(Node):
+    """Collects truth and agent states; see the module docstring."""
+
+    def __init__(self, agent_ids: list[int] | None = None, **kwargs) -> None:
+        super().__init__('swarm_monitor', **kwargs)
+        self.declare_parameter('agent_ids', list(agent_ids or [0]),
+                               ParameterDescriptor(description='Agent ids to watch'))
+        self.declare_parameter('record_period_s', 0.5,
+                               ParameterDescriptor(description='Recording period (sim time)'))
+        self.agent_ids = [int(a) for a in self.get_parameter('agent_ids').value]
+        self.period = float(self.get_parameter('record_period_s').value)
+        self.lock = threading.Lock()
+        self.index = {a: i for i, a in enumerate(self.agent_ids)}
+        n = len(self.agent_ids)
+        self.states: list[AgentState | None] = [None] * n
+        self.truth: SwarmTruth | None = None
+        self.shapes: list[tuple[float, object]] = []
+        self.shape = None
+        self.goals: list = []
+        self.goal_version = 0
+        self.record: dict[str, list] = {k: [] for k in (
+            'times', 'positions', 'velocities', 'estimates', 'modes', 'alive', 'goal_ids',
+            'digests', 'rounds')}
+        self._last_record = -1e9
+        self.rounds_seen: set[int] = set()
+        state_qos = QoSProfile(**qos.STATE)
+        self.create_subscription(SwarmTruth, '/swarm/truth', self._on_truth, state_qos)
+        self.create_subscription(FormationShape, '/swarm/shape', self._on_shape,
+                                 QoSProfile(**qos.LATCHED))
+        self.create_subscription(GoalArray, '/swarm/goals', self._on_goals,
+                                 QoSProfile(**qos.LATCHED))
+        for agent in self.agent_ids:
+            self.create_subscription(AgentState, f'/agent_{agent}/state', self._on_state,
+                                     state_qos)
+
+    def now(self) -> float:
+        """Current (sim) time in seconds."""
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _on_shape(self, msg: FormationShape) -> None:
+        try:
+            shape = shape_from_msg(msg)
+        except ShapeError:
+            return
+        with self.lock:
+            self.shape = shape
+            self.shapes.append((self._truth_time(), shape))
+
+    def _on_goals(self, msg: GoalArray) -> None:
+        with self.lock:
+            self.goals = goals_from_msg(msg)
+            self.goal_version = msg.version
+
+    def _on_state(self, msg: AgentState) -> None:
+        i = self.index.get(int(msg.id))
+        if i is not None:
+            with self.lock:
+                self.states[i] = msg
+                if msg.assignment_round:
+                    self.rounds_seen.add(int(msg.assignment_round))
+
+    def _truth_time(self) -> float:
+        if self.truth is None:
+            return 0.0
+        return self.truth.header.stamp.sec + self.truth.header.stamp.nanosec * 1e-9
+
+    def _on_truth(self, msg: SwarmTruth) -> None:
+        with self.lock:
+            self.truth = msg
+            t = self._truth_time()
+            if t - self._last_record < self.period - 1e-6:
+                return
+            self._last_record = t
+            n = len(self.agent_ids)
+            pos = np.full((n, 2), np.nan)
+            vel = np.zeros((n, 2))
+            alive = np.zeros(n, dtype=bool)
+            for a in msg.agents:
+                i = self.index.get(int(a.id))
+                if i is not None:
+                    pos[i] = a.position
+                    vel[i] = a.velocity
+                    alive[i] = a.alive
+            est = np.array([s.position if s is not None else (np.nan, np.nan)
+                            for s in self.states], dtype=float)
+            r = self.record
+            r['times'].append(t)
+            r['positions'].append(pos)
+            r['velocities'].append(vel)
+            r['alive'].append(alive)
+            r['estimates'].append(est)
+            r['modes'].append(np.array([s.mode if s is not None else -1 for s in self.states]))
+            r['goal_ids'].append(np.array([s.assigned_goal if s is not None else -1
+                                           for s in self.states]))
+            r['digests'].append(np.array([s.assignment_digest if s is not None else 0
+                                          for s in self.states], dtype=np.int64))
+            r['rounds'].append(np.array([s.assignment_round if s is not None else 0
+                                         for s in self.states], dtype=np.int64))
+
+    def snapshot(self) -> dict:
+        """A copy of the record as numpy arrays (thread-safe)."""
+        with self.lock:
+            return {k: np.asarray(v) for k, v in self.record.items()}
+
+    def live_status(self) -> dict:
+        """Sim time, settled agents and mode counts for the progress line."""
+        with self.lock:
+            states = [s for s in self.states if s is not None]
+            return {
+                't': self._truth_time(),
+                'agents_heard': len(states),
+                'settled': sum(1 for s in states if s.settled),
+                'normal': sum(1 for s in states if s.mode == AgentState.MODE_NORMAL),
+                'lost': sum(1 for s in states if s.mode == AgentState.MODE_LOST),
+                'return_home': sum(1 for s in states if s.mode == AgentState.MODE_RETURN_HOME),
+                'goal_version': self.goal_version,
+            }
+
+
+def main(args=None) -> None:
+    """Run the monitor alone (records until Ctrl-C)."""
+    rclpy.init(args=args)
+    node = MonitorNode()
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main(sys.argv)

@@ -1,0 +1,89 @@
+"""Turn a run record into metrics and figures (shared by the launcher and the evaluator)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+import json
+import pathlib
+
+import numpy as np
+
+from swarm_mission.robot_types import load_robot_types
+from swarm_sim import plots
+from swarm_sim.metrics import belief_metrics, run_metrics
+
+
+def run_report(out: pathlib.Path, record: Mapping[str, np.ndarray], types: Sequence[int],
+               is_beacon: Sequence[bool], shapes: Sequence, goals: Sequence,
+               extra: Mapping | None = None, figures: bool = True) -> dict:
+    """Compute every metric of a run, draw its figures into ``out``, return the metrics.
+
+    ``record`` holds ``times`` (T,), ``positions``/``velocities``/``estimates`` (T, N, 2),
+    ``alive``/``modes``/``goal_ids``/``digests`` (T, N). ``shapes`` are the shapes the run
+    used in order; metrics are taken against the last one.
+    """
+    out = pathlib.Path(out)
+    types = np.asarray(types)
+    is_beacon = np.asarray(is_beacon, dtype=bool)
+    radii = {t: r.coverage_radius for t, r in load_robot_types().items()}
+    metrics: dict = dict(extra or {})
+    times = np.asarray(record['times'])
+    if len(times) < 2 or not shapes:
+        metrics['error'] = 'run too short to measure (no truth or no shape recorded)'
+        return metrics
+    positions = np.nan_to_num(np.asarray(record['positions']), nan=0.0)
+    shape = shapes[-1]
+    metrics.update(run_metrics(times, positions, np.asarray(record['velocities']), types,
+                               shape, radii, alive=np.asarray(record['alive'])))
+    metrics.update(belief_metrics(record, types, is_beacon))
+    metrics['real_time_factor'] = metrics.get('real_time_factor') or (
+        float(times[-1] - times[0]) / metrics['wall_seconds']
+        if metrics.get('wall_seconds') else None)
+    if figures:
+        alive = np.asarray(record['alive'])[-1]
+        plots.trajectories(out / 'trajectories.png', times, np.asarray(record['positions']),
+                           types, shapes, goals)
+        plots.mesh(out / 'mesh.png', positions[-1][alive], types[alive], radii, shape,
+                   metrics.get('epsilon_t', float('nan')),
+                   metrics.get('epsilon_g', float('nan')))
+        err = np.linalg.norm(np.asarray(record['estimates']) - positions, axis=2)
+        err = np.where(np.asarray(record['alive']), err, np.nan)[:, ~is_beacon]
+        plots.localization_error(out / 'localization_error.png', times, err)
+        plots.modes(out / 'modes.png', times, np.asarray(record['modes']))
+    return metrics
+
+
+def summarize(trials: Sequence[Mapping]) -> dict:
+    """Means over trials of every numeric metric (None/NaN ignored)."""
+    mean: dict = {}
+    for key in sorted({k for t in trials for k in t}):
+        values = [t[key] for t in trials
+                  if isinstance(t.get(key), (int, float, np.number))
+                  and not isinstance(t.get(key), bool) and np.isfinite(t[key])]
+        if values:
+            mean[key] = float(np.mean(values))
+    mean['settled_fraction'] = float(np.mean(
+        [t.get('settling_time') is not None for t in trials])) if trials else 0.0
+    return mean
+
+
+def write_metrics(out: pathlib.Path, trials: Sequence[Mapping],
+                  scenario: Mapping | None = None) -> dict:
+    """Write ``out/metrics.json`` = {"scenario", "trials", "mean"}; return the means."""
+    mean = summarize(trials)
+    payload = {'scenario': dict(scenario or {}), 'trials': list(trials), 'mean': mean}
+    (pathlib.Path(out) / 'metrics.json').write_text(
+        json.dumps(_jsonable(payload), indent=2, default=str), encoding='utf-8')
+    return mean
+
+
+def _jsonable(value):
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (np.floating, float)):
+        return None if not np.isfinite(value) else float(value)
+    return value
