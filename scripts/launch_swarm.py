@@ -216,7 +216,6 @@ def main(argv: list[str] | None = None) -> int:
                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
     os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     children = Children(out / 'logs', env)
-    agent_types = [r.type for r in sorted(fleet, key=lambda r: r.id)]
     ids = [r.id for r in sorted(fleet, key=lambda r: r.id)]
     removals = sorted((float(s.split(':')[0]), [int(i) for i in s.split(':')[1].split(',')])
                       for s in args.remove)
@@ -241,7 +240,7 @@ def main(argv: list[str] | None = None) -> int:
                   'gui': args.gui, 'seed': args.seed}
     children.start('sim', ['-m', 'swarm_sim.sim_node', *ros_args(sim_params)])
     mission_params = {'shape': args.shape, 'method': args.method,
-                      'agent_types': agent_types, 'seed': args.seed,
+                      'fleet_file': str(fleet_file), 'seed': args.seed,
                       'decentralized': args.decentralized, 'use_sim_time': True}
     if args.sequence:
         mission_params['sequence_file'] = str(pathlib.Path(args.sequence).resolve())

@@ -24,6 +24,8 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            'agent_node = swarm_agent.agent_node:main',
+            'composed_node = swarm_agent.composed_node:main',
         ],
     },
 )

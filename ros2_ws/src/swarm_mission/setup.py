@@ -24,6 +24,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            'mission_node = swarm_mission.mission_node:main',
         ],
     },
 )

@@ -21,6 +21,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+import yaml
 
 from swarm_mission import qos
 from swarm_mission.conversions import goals_to_msg, shape_from_msg, shape_to_msg
@@ -36,8 +37,8 @@ PARAMETERS = {
     'shape_scale': (1.0, 'Scale applied to SVG/PNG shapes'),
     'sequence_file': ('', 'Optional YAML/JSON shape sequence [{time, shape}, ...]'),
     'method': ('bubble', 'Partition method: bubble, fractal or forces (no partition)'),
-    'agent_types': ([1], 'Robot type of each agent id 0..N-1 (fleet order)'),
-    'type_counts': ('', 'Alternative to agent_types: 1:20,2:20,3:10 (ids in that order)'),
+    'fleet_file': ('', 'Fleet YAML (robots: id, type, ...): the swarm composition'),
+    'type_counts': ('1:20,2:20,3:10', 'Composition when no fleet file: ids 0.. in type order'),
     'seed': (0, 'Partition seed (deterministic partitions)'),
     'decentralized': (False, 'Only announce shapes; agents partition themselves'),
     'agent_timeout_s': (6.0, 'Silence after which an agent is declared lost'),
@@ -55,19 +56,21 @@ class MissionNode(Node):
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
         self.params = p
         types = load_robot_types()
-        if p['type_counts']:
-            counts = parse_type_counts(p['type_counts'])
-            agent_types = [t for t in sorted(counts) for _ in range(counts[t])]
+        if p['fleet_file']:
+            with open(p['fleet_file'], encoding='utf-8') as stream:
+                robots = yaml.safe_load(stream)['robots']
+            agent_types = {int(r['id']): int(r['type']) for r in robots}
         else:
-            agent_types = [int(t) for t in p['agent_types']]
-        for t in set(agent_types):
+            counts = parse_type_counts(p['type_counts'])
+            agent_types = dict(enumerate(t for t in sorted(counts) for _ in range(counts[t])))
+        for t in set(agent_types.values()):
             if t not in types:
                 raise RobotTypeError(f'agent_types holds unknown robot type {t}; '
                                      f'known: {sorted(types)}')
         self.mission = Mission(
             MissionConfig(method=p['method'], seed=p['seed'],
                           agent_timeout_s=p['agent_timeout_s'], repair=p['repair']),
-            agent_types=dict(enumerate(agent_types)),
+            agent_types=agent_types,
             radii={t: r.coverage_radius for t, r in types.items()})
         self._sequence = (load_sequence(p['sequence_file'], scale=p['shape_scale'])
                           if p['sequence_file'] else [])
