@@ -96,9 +96,11 @@ def validate(args: argparse.Namespace):
         radii = {t: r.coverage_radius for t, r in types.items()}
         if args.method != 'forces':
             partition(shape, counts, radii, args.method, seed=args.seed)
+        args.last_switch = 0.0
         if args.sequence:
             from swarm_mission.mission import load_sequence
             for step in load_sequence(args.sequence):
+                args.last_switch = max(args.last_switch, step.time)
                 if args.method != 'forces':
                     partition(step.shape, counts, radii, args.method, seed=args.seed)
         fleet = random_fleet(counts, beacons, np.random.default_rng(args.seed),
@@ -270,6 +272,7 @@ def main(argv: list[str] | None = None) -> int:
     last_change_t = 0.0
     last_goal_version = 0
     crashed = None
+    removed = 0
     try:
         while True:
             time.sleep(0.5)
@@ -288,6 +291,7 @@ def main(argv: list[str] | None = None) -> int:
                 kill_pub.publish(Int32MultiArray(data=victims))
                 for v in victims:
                     children.kill(f'agent_{v}')
+                removed += len(victims)
                 print(f'\nlaunch_swarm: t={t:.1f} s removed agents {victims}', flush=True)
                 last_change_t = t
             if status['goal_version'] != last_goal_version:
@@ -301,8 +305,8 @@ def main(argv: list[str] | None = None) -> int:
             print(line, end='', flush=True)
             if t >= args.duration:
                 break
-            if status['settled'] >= args.agents - sum(len(v) for _, v in removals) and \
-                    status['agents_heard'] > 0 and t - last_change_t > args.settle_hold:
+            if status['settled'] >= args.agents - removed and not removals and \
+                    t > args.last_switch and t - last_change_t > args.settle_hold:
                 settled_since = t if settled_since is None else settled_since
                 if t - settled_since >= args.settle_hold:
                     outcome = 'settled'
