@@ -1,0 +1,45 @@
+"""Mesh application messages: compact, exact round trips, malformed bytes rejected."""
+
+import numpy as np
+import pytest
+
+from swarm_agent.mesh_messages import CostRow, MeshMessageError, NeighbourInfo
+
+
+def test_neighbour_info_round_trip_fits_one_xbee_frame():
+    info = NeighbourInfo(agent_type=3, is_beacon=True, mode=2, position=(12.5, -40.25),
+                         velocity=(0.5, -0.125), settled=True)
+    data = info.encode()
+    assert len(data) <= 100
+    assert NeighbourInfo.decode(data) == info
+
+
+def test_cost_row_quantises_to_centimetres_and_keeps_unreachable():
+    costs = np.array([0.0, 1.234, 57.891, np.inf])
+    row = CostRow.from_costs(7, 2, 3, 41, costs)
+    back = CostRow.decode(row.encode())
+    assert back == row
+    np.testing.assert_allclose(back.costs[:3], [0.0, 1.23, 57.89], atol=1e-9)
+    assert np.isinf(back.costs[3])
+    # 20 goals of one type (the thesis swarm) fit in one 100-byte frame.
+    assert len(CostRow.from_costs(1, 1, 1, 1, np.ones(20)).encode()) <= 100
+
+
+@pytest.mark.parametrize('bad', [b'', b'\x01', b'\x02' + bytes(5), bytes(20)])
+def test_malformed_bytes_are_rejected(bad):
+    with pytest.raises(MeshMessageError):
+        NeighbourInfo.decode(bad)
+    with pytest.raises(MeshMessageError):
+        CostRow.decode(bad)
+
+
+def test_truncated_cost_row_is_rejected():
+    data = CostRow.from_costs(1, 1, 1, 1, np.ones(5)).encode()
+    with pytest.raises(MeshMessageError, match='must be'):
+        CostRow.decode(data[:-1])
+
+
+def test_non_finite_position_is_rejected():
+    data = NeighbourInfo(1, False, 0, (float('nan'), 0.0), (0.0, 0.0)).encode()
+    with pytest.raises(MeshMessageError, match='non-finite'):
+        NeighbourInfo.decode(data)
