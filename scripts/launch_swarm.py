@@ -318,6 +318,10 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         wall = time.monotonic() - wall0
         cpu = children.cpu_seconds()
+        # Who listens to ground truth? Only the monitor may (agents never see truth).
+        truth_readers = sorted({f'{i.node_namespace.rstrip("/")}/{i.node_name}'
+                                for i in monitor.get_subscriptions_info_by_topic(
+                                    '/swarm/truth')})
         children.stop_all()
         executor.shutdown()
         monitor_record = monitor.snapshot()
@@ -339,7 +343,7 @@ def main(argv: list[str] | None = None) -> int:
                              'peak_rss_bytes': peak_rss, 'consensus_rounds': rounds,
                              'launcher_max_rss_bytes':
                                  resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
-                             'seed': args.seed})
+                             'seed': args.seed, 'truth_subscribers': truth_readers})
     scenario = {k: v for k, v in vars(args).items()}
     scenario.update(beacons=beacons, domain=domain)
     write_metrics(out, [metrics], scenario)

@@ -95,7 +95,7 @@ class AgentNode(Node):
             robot_types_file=p['robot_types_file'] or None,
             external_pose=p['external_pose'])
         self._type_counts = p['type_counts']
-        self._local_goal_version = 0
+        self._last_setpoint: tuple[float, float] | None = None
 
         latched, sensor, radio, state = (
             QoSProfile(**profile) for profile in (qos.LATCHED, qos.SENSOR, qos.RADIO, qos.STATE))
@@ -183,9 +183,13 @@ class AgentNode(Node):
         wrench.header.frame_id = 'map'
         wrench.wrench.force.x, wrench.wrench.force.y = (float(v) for v in out.force)
         self._cmd_force.publish(wrench)
-        twist = Twist()
-        twist.linear.x, twist.linear.y = (float(v) for v in out.velocity_setpoint)
-        self._cmd_vel.publish(twist)
+        # The setpoint changes at the outer-loop rate only: publish it when it changes.
+        setpoint = tuple(float(v) for v in out.velocity_setpoint)
+        if setpoint != self._last_setpoint:
+            self._last_setpoint = setpoint
+            twist = Twist()
+            twist.linear.x, twist.linear.y = setpoint
+            self._cmd_vel.publish(twist)
 
     def _on_introspection(self) -> None:
         stamp = self.get_clock().now().to_msg()
