@@ -45,6 +45,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument('--shape', default='circle_314', help='built-in name or shape file')
     p.add_argument('--sequence', default='', help='YAML/JSON shape sequence [{time, shape}]')
     p.add_argument('--duration', type=float, default=300.0, help='sim seconds at most')
+    p.add_argument('--half-size', type=float, default=50.0,
+                   help='workspace half-width in metres (thesis: 50)')
     p.add_argument('--settle-hold', type=float, default=5.0)
     p.add_argument('--seed', type=int, default=0)
     p.add_argument('--composed', action='store_true', help='all agents in one process')
@@ -104,7 +106,7 @@ def validate(args: argparse.Namespace):
                 if args.method != 'forces':
                     partition(step.shape, counts, radii, args.method, seed=args.seed)
         fleet = random_fleet(counts, beacons, np.random.default_rng(args.seed),
-                             obstacles=list(shape.obstacles))
+                             half_size=args.half_size, obstacles=list(shape.obstacles))
     except (ShapeError, PartitionError, RobotTypeError, ValueError) as exc:
         raise LaunchError(str(exc)) from exc
     return shape, counts, beacons, fleet
@@ -239,7 +241,7 @@ def main(argv: list[str] | None = None) -> int:
 
     sim_params = {'fleet_file': str(fleet_file), 'shape': args.shape,
                   'real_time_factor': float(args.rtf), 'record_dir': str(out),
-                  'gui': args.gui, 'seed': args.seed}
+                  'gui': args.gui, 'seed': args.seed, 'half_size': args.half_size}
     children.start('sim', ['-m', 'swarm_sim.sim_node', *ros_args(sim_params)])
     mission_params = {'shape': args.shape, 'method': args.method,
                       'fleet_file': str(fleet_file), 'seed': args.seed,
@@ -328,6 +330,7 @@ def main(argv: list[str] | None = None) -> int:
         monitor_shapes = list(monitor.shapes)
         monitor_goals = list(monitor.goals)
         rounds = len(monitor.rounds_seen)
+        goal_versions = monitor.goal_version
         monitor.destroy_node()
         rclpy.try_shutdown()
     print()
@@ -343,7 +346,8 @@ def main(argv: list[str] | None = None) -> int:
                              'peak_rss_bytes': peak_rss, 'consensus_rounds': rounds,
                              'launcher_max_rss_bytes':
                                  resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
-                             'seed': args.seed, 'truth_subscribers': truth_readers})
+                             'seed': args.seed, 'truth_subscribers': truth_readers,
+                             'goal_versions': goal_versions})
     scenario = {k: v for k, v in vars(args).items()}
     scenario.update(beacons=beacons, domain=domain)
     write_metrics(out, [metrics], scenario)
