@@ -15,6 +15,8 @@ setup(
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
         ('share/' + PACKAGE + '/launch', glob('launch/*.launch.py')),
+        ('share/' + PACKAGE + '/shapes', glob('shapes/*.json') + glob('shapes/*.svg')
+         + glob('shapes/*.png')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

@@ -1,0 +1,99 @@
+"""Typed goal states g_i in G produced by shape partitioning (thesis 3.2.2.1).
+
+A goal is the centre of one agent's coverage circle inside the formation shape: the
+robot type that must occupy it and that type's coverage radius (Table 4.1).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+import math
+
+import numpy as np
+
+
+class GoalError(ValueError):
+    """Goal data that cannot be used (missing keys, non-finite values)."""
+
+
+class PartitionError(ValueError):
+    """A shape that cannot be partitioned for the swarm (e.g. too small: says by how much).
+
+    Defined here so that every partitioning method can raise it; re-exported by
+    :mod:`swarm_mission.partition`.
+    """
+
+
+@dataclass(frozen=True)
+class Goal:
+    """One goal state: id, robot type, centre (m, map frame) and coverage radius (m)."""
+
+    id: int
+    type: int
+    x: float
+    y: float
+    radius: float
+
+
+def goal_positions(goals: Sequence[Goal]) -> np.ndarray:
+    """Centres of ``goals`` as an (n, 2) array."""
+    return np.array([[g.x, g.y] for g in goals], dtype=float).reshape(-1, 2)
+
+
+def goal_radii(goals: Sequence[Goal]) -> np.ndarray:
+    """Coverage radii of ``goals`` as an (n,) array."""
+    return np.array([g.radius for g in goals], dtype=float)
+
+
+def goals_to_json(goals: Sequence[Goal]) -> dict:
+    """The ``goals.json`` document: ``{"goals": [{"x", "y", "type", "radius", "id"}, ...]}``."""
+    return {'goals': [asdict(g) for g in goals]}
+
+
+def goals_from_json(data: dict) -> list[Goal]:
+    """Inverse of :func:`goals_to_json`; ids default to the list position."""
+    try:
+        entries = data['goals']
+        goals = [Goal(id=int(e.get('id', i)), type=int(e['type']), x=float(e['x']),
+                      y=float(e['y']), radius=float(e['radius']))
+                 for i, e in enumerate(entries)]
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise GoalError(f'goals document needs {{"goals": [{{"x", "y", "type", "radius"}}, '
+                        f'...]}}: {exc!r}') from None
+    for g in goals:
+        if not all(math.isfinite(v) for v in (g.x, g.y, g.radius)) or g.radius <= 0:
+            raise GoalError(f'goal {g.id} has a non-finite position or non-positive radius; '
+                            'fix the goals file')
+    return goals
+
+
+HEX_PACKING_DENSITY = np.pi / (2 * np.sqrt(3))   # densest packing of equal disks (0.9069)
+
+
+def placement_violations(points: np.ndarray, radii: np.ndarray, region,
+                         tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
+    """Which coverage circles leave ``region`` and which pairs overlap.
+
+    Returns (indices of circles not wholly inside the region, (k, 2) overlapping index
+    pairs). Used by the partitioners as their final guarantee and by the tests.
+    """
+    from scipy.spatial import cKDTree
+    import shapely
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    radii = np.asarray(radii, dtype=float)
+    inside = shapely.contains_xy(region, pts[:, 0], pts[:, 1])
+    clearance = shapely.distance(region.boundary, shapely.points(pts))
+    outside = np.flatnonzero(~inside | (clearance < radii - tol))
+    if len(pts) < 2:
+        return outside, np.zeros((0, 2), dtype=int)
+    pairs = cKDTree(pts).query_pairs(2 * radii.max(), output_type='ndarray')
+    if len(pairs):
+        dist = np.linalg.norm(pts[pairs[:, 0]] - pts[pairs[:, 1]], axis=1)
+        pairs = pairs[dist < radii[pairs[:, 0]] + radii[pairs[:, 1]] - tol]
+    return outside, pairs.reshape(-1, 2)
+
+
+def required_area(radii: np.ndarray) -> float:
+    """Smallest area that could hold these coverage circles (hexagonal packing bound)."""
+    return float(np.pi * np.sum(np.square(radii)) / HEX_PACKING_DENSITY)
