@@ -109,11 +109,12 @@ def _ring(coords, what: str) -> np.ndarray:
 
 def _simple_polygon(arr: np.ndarray, what: str) -> Polygon:
     poly = Polygon(arr)
+    if np.linalg.matrix_rank(arr - arr.mean(axis=0), tol=1e-12) < 2:
+        raise ShapeError(f'{what} encloses no area (collinear vertices); give a '
+                         'non-degenerate ring')
     if not poly.is_valid:
         raise ShapeError(f'{what} is not a simple closed ring ({explain_validity(poly)}); '
                          'remove the self-intersection')
-    if poly.area <= 0.0:
-        raise ShapeError(f'{what} encloses no area; give a non-degenerate ring')
     return poly
 
 
@@ -301,10 +302,10 @@ def _load_png(path: pathlib.Path, metres_per_pixel: float) -> Shape:
     try:
         with Image.open(path) as image:
             rgba = np.asarray(image.convert('RGBA'), dtype=float)
-    except OSError as exc:
-        raise ShapeError(f'cannot read image {path}: {exc}; give a PNG silhouette') from None
     except UnidentifiedImageError:
         raise ShapeError(f'{path} is not a readable image; give a PNG silhouette') from None
+    except OSError as exc:
+        raise ShapeError(f'cannot read image {path}: {exc}; give a PNG silhouette') from None
     luminance = rgba[..., :3] @ np.array([0.299, 0.587, 0.114])
     dark = (luminance < 128.0) & (rgba[..., 3] > 127.0)
     labels, count = ndimage.label(dark)
