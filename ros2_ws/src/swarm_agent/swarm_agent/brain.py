@@ -60,6 +60,11 @@ LOG = logging.getLogger(__name__)
 METHODS = ('bubble', 'fractal', 'forces')
 
 
+def _next_tick(due: float, t: float, period: float) -> float:
+    """The next due time after ``t`` on the grid ``due + k * period`` (no catch-up bursts)."""
+    return due + period * (math.floor((t - due) / period) + 1)
+
+
 def _inside(shape: Shape, point: np.ndarray) -> bool:
     return bool(shapely.contains_xy(shape.region, float(point[0]), float(point[1])))
 
@@ -245,10 +250,11 @@ class AgentBrain:
         dt = 0.0 if self._last_t is None else max(0.0, t - self._last_t)
         self._last_t = t
         if not self.config.is_beacon and t >= self._next_localization:
-            self._next_localization += self.config.localization.period_s
+            self._next_localization = _next_tick(self._next_localization, t,
+                                                 self.config.localization.period_s)
             self._localize(t)
         if t >= self._next_outer:
-            self._next_outer += self.config.outer_period_s
+            self._next_outer = _next_tick(self._next_outer, t, self.config.outer_period_s)
             self._outer(t)
         self.router.set_heartbeat_info(self._info().encode())
         self._outbox.extend(self.router.tick(t))
@@ -323,7 +329,10 @@ class AgentBrain:
             self._setpoint = self._forces_setpoint(neighbours)
             return
         rnd = self._round(t)
-        if self._my_goals and mode == Mode.NORMAL:
+        if self._my_goals:
+            # LOST agents still report: their dead-reckoned estimate is good for a few
+            # periods, and dropping their rows would hand their goals to others while
+            # they keep driving to them. RETURN_HOME agents (above) do not report.
             self._report_costs(rnd)
         self._assign(rnd - 1)
         goal = next((g for g in self._my_goals if g.id == self.goal_id), None)
