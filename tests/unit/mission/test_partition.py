@@ -145,3 +145,17 @@ def test_force_law_and_schedule_first_principles():
 
 def test_yaml_defaults_match_the_dataclasses():
     assert load_partition_config() == PartitionConfig()
+
+
+@pytest.mark.parametrize('options', [{'force': 'thesis', 'spacing': 'thesis'},
+                                     {'boundary': 'thesis'}])
+def test_thesis_parameter_modes_stay_feasible(options):
+    shape = load_shape('thesis_shape_1')
+    config = PartitionConfig(bubble=BubbleConfig(**options, max_iterations=150))
+    result = partition(shape, SWARM, RADII, 'bubble', seed=0, config=config)
+    assert_feasible(result, shape, SWARM)
+
+
+def test_bad_bubble_parameters_name_the_field():
+    with pytest.raises(PartitionError, match='force'):
+        BubbleConfig(force='magnetic')
