@@ -16,13 +16,13 @@ import sys
 
 from rcl_interfaces.msg import ParameterDescriptor
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import Int32MultiArray
 import yaml
 
-from swarm_agent.agent_node import AgentNode
+from swarm_agent.agent_node import AgentNode, make_executor
 
 SHARED = {
     'method': ('bubble', 'Formation method of every agent'),
@@ -89,7 +89,7 @@ class ComposedAgents(Node):
 def main(args=None) -> None:
     """Run a composed swarm (``ros2 run swarm_agent composed_node``)."""
     rclpy.init(args=args)
-    executor = SingleThreadedExecutor()
+    executor = make_executor()
     container = ComposedAgents(executor)
     executor.add_node(container)
     try:
