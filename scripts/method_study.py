@@ -1,0 +1,156 @@
+#!/usr/bin/env python3
+"""Compare the three formation methods (thesis Table 4.4) and dynamic formations (4.3.4).
+
+Runs the headless evaluator (``swarm_sim.headless``) for bubble packing, randomized
+fractals and artificial forces on the same seeds, then a shape sequence for bubble
+packing and forces, and writes into --out:
+
+  comparison.json   per-method means and the per-trial metrics
+  comparison.md     a table like thesis Tables 4.5-4.9 plus the worst-method marks of Table 4.4
+  boxplots.png      displacement, settling time, epsilon_t, epsilon_g per method
+  coverage_lag.png  fraction of agents inside the current shape after each switch
+  coverage_lag.json lag per switch and method (time until 95 % of the agents are inside)
+
+  scripts/env.sh python scripts/method_study.py --agents 50 --trials 4 --workers 2 \\
+      --out results/method_study
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures as futures
+import json
+import pathlib
+import sys
+
+import numpy as np
+
+from swarm_mission.mission import SequenceStep
+from swarm_mission.robot_types import default_type_counts
+from swarm_mission.shapes import load_shape, ShapeError
+from swarm_sim import plots
+from swarm_sim.headless import HeadlessSwarm, Scenario
+from swarm_sim.metrics import inside_mask
+from swarm_sim.report import summarize
+
+METHODS = ('bubble', 'fractal', 'forces')
+TABLE_KEYS = (('total_displacement', 'Total displacement [m]', 0, 'min'),
+              ('settling_time', 'Settling time [s]', 0, 'min'),
+              ('epsilon_t', 'eps_t', 2, 'min'), ('epsilon_g', 'eps_g', 2, 'min'))
+
+
+def _trial(method: str, shape_name: str, agents: int, beacons: int, seed: int,
+           duration: float, sequence: tuple[tuple[float, str], ...] = ()) -> dict:
+    shape = load_shape(shape_name)
+    steps = [SequenceStep(t, load_shape(name)) for t, name in sequence]
+    scenario = Scenario(shape=shape, method=method, type_counts=default_type_counts(agents),
+                        n_beacons=beacons, seed=seed, duration_s=duration, sequence=steps)
+    record = HeadlessSwarm(scenario).run()
+    result = dict(record.metrics, method=method, seed=seed)
+    if steps:
+        result['coverage'] = _coverage(record)
+    return result
+
+
+def _coverage(record) -> dict:
+    """Fraction of living agents inside the shape in force at each recorded time."""
+    switch_times = [t for t, _ in record.shapes]
+    fractions = []
+    for k, t in enumerate(record.times):
+        current = max(i for i, s in enumerate(switch_times) if s <= t + 1e-9)
+        alive = record.alive[k]
+        inside = inside_mask(record.shapes[current][1], record.positions[k][alive])
+        fractions.append(float(np.mean(inside)) if len(inside) else 0.0)
+    fractions = np.array(fractions)
+    lags = []
+    for i, start in enumerate(switch_times[1:], start=1):
+        end = switch_times[i + 1] if i + 1 < len(switch_times) else record.times[-1] + 1
+        window = (record.times >= start) & (record.times < end)
+        ok = np.flatnonzero(window & (fractions >= 0.95))
+        lags.append(float(record.times[ok[0]] - start) if len(ok) else None)
+    return {'times': record.times.tolist(), 'fraction_inside': fractions.tolist(),
+            'switch_times': switch_times, 'lags': lags}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--shape', default='thesis_shape_1')
+    parser.add_argument('--sequence', nargs='*', default=['thesis_shape_1@0',
+                                                          'thesis_shape_2@150'],
+                        help='dynamic-formation shapes as NAME@TIME')
+    parser.add_argument('--agents', type=int, default=50)
+    parser.add_argument('--beacons', type=int, default=8)
+    parser.add_argument('--trials', type=int, default=4)
+    parser.add_argument('--seed', type=int, default=0)
+    parser.add_argument('--workers', type=int, default=2)
+    parser.add_argument('--duration', type=float, default=600.0)
+    parser.add_argument('--out', required=True)
+    args = parser.parse_args(argv)
+    out = pathlib.Path(args.out)
+    try:
+        load_shape(args.shape)
+        sequence = tuple((float(s.split('@')[1]), s.split('@')[0]) for s in args.sequence)
+        for _, name in sequence:
+            load_shape(name)
+    except (ShapeError, IndexError, ValueError) as exc:
+        print(f'method_study.py: bad shape or sequence: {exc}', file=sys.stderr)
+        return 2
+    out.mkdir(parents=True, exist_ok=True)
+    from tqdm import tqdm
+
+    jobs = [(m, args.shape, args.agents, args.beacons, args.seed + k, args.duration, ())
+            for m in METHODS for k in range(args.trials)]
+    jobs += [(m, sequence[0][1], args.agents, args.beacons, args.seed, args.duration,
+              sequence[1:]) for m in ('bubble', 'forces')]
+    results: list[dict] = []
+    with futures.ProcessPoolExecutor(max_workers=args.workers) as pool:
+        pending = [pool.submit(_trial, *job) for job in jobs]
+        for job in tqdm(futures.as_completed(pending), total=len(pending), unit='trial'):
+            results.append(job.result())
+    static = [r for r in results if 'coverage' not in r]
+    dynamic = [r for r in results if 'coverage' in r]
+    groups = {m: [r for r in static if r['method'] == m] for m in METHODS}
+    means = {m: summarize(g) for m, g in groups.items()}
+    lines = ['| Method | ' + ' | '.join(label for _, label, _, _ in TABLE_KEYS) +
+             ' | Lower bound [m] |', '|---' * (len(TABLE_KEYS) + 2) + '|']
+    worst = {key: max(METHODS, key=lambda m: means[m].get(key, -np.inf))
+             for key, _, _, _ in TABLE_KEYS}
+    for m in METHODS:
+        cells = []
+        for key, _, digits, _ in TABLE_KEYS:
+            v = means[m].get(key)
+            mark = ' (worst)' if worst[key] == m else ''
+            cells.append('n/a' if v is None else f'{v:.{digits}f}{mark}')
+        bound = means[m].get('displacement_lower_bound')
+        bound_cell = 'n/a' if bound is None else f'{bound:.0f}'
+        lines.append(f'| {m} | ' + ' | '.join(cells) + f' | {bound_cell} |')
+    lags = {r['method']: r['coverage']['lags'] for r in dynamic}
+    lines += ['', 'Coverage lag after each shape switch (s until 95 % of agents inside): ' +
+              ', '.join(f'{m}: {v}' for m, v in lags.items())]
+    (out / 'comparison.md').write_text('\n'.join(lines) + '\n', encoding='utf-8')
+    (out / 'comparison.json').write_text(json.dumps(
+        {'means': means, 'trials': static, 'coverage_lag': lags}, indent=2, default=str),
+        encoding='utf-8')
+    plots.boxplots(out / 'boxplots.png', groups,
+                   [(k, label) for k, label, _, _ in TABLE_KEYS])
+    if dynamic:
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(8, 3.5))
+        for r in dynamic:
+            ax.plot(r['coverage']['times'], r['coverage']['fraction_inside'], label=r['method'])
+        for t in dynamic[0]['coverage']['switch_times'][1:]:
+            ax.axvline(t, color='0.5', ls='--')
+        ax.set_xlabel('t [s]')
+        ax.set_ylabel('agents inside current shape')
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(out / 'coverage_lag.png', dpi=110)
+        plt.close(fig)
+        (out / 'coverage_lag.json').write_text(json.dumps(lags, indent=2), encoding='utf-8')
+    print('\n'.join(lines))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
