@@ -1,0 +1,333 @@
+"""DSDV mesh routing of one agent (thesis 3.1.2, Figs. 3.5-3.9), driven by time arguments.
+
+- Neighbour discovery: every heartbeat heard makes its sender a neighbour (route of one
+  hop with the sender's own sequence number); a neighbour silent for
+  ``neighbour_timeout_s`` is a broken link.
+- Route table: destination -> (next hop, hops, destination sequence number). Own
+  sequence numbers are even and grow with every full dump; a broken link is
+  advertised with an infinite metric and the odd sequence number one above the last
+  known (3.1.2.3), so it overrides the stale route everywhere.
+- Selection rules: a route with a newer sequence number always wins; with the same
+  sequence number the smaller hop count wins (3.1.2.1). Sequence numbers make stale
+  routes lose, so there is no count-to-infinity.
+- Periodic full dumps and triggered incremental updates of changed routes.
+- Multi-hop delivery: routed unicast DATA hop by hop along next hops with a TTL, and
+  FLOOD broadcasts deduplicated by (origin, flood id); messages longer than one frame
+  are fragmented and reassembled.
+
+Malformed, truncated or unknown frames are counted in ``stats`` and dropped.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from dataclasses import dataclass, field
+import logging
+
+from swarm_agent import wire
+from swarm_agent.packet import BROADCAST, Kind, Packet
+from swarm_agent.wire import Advert, INFINITE_HOPS, WireError
+
+LOG = logging.getLogger(__name__)
+
+
+@dataclass
+class DsdvConfig:
+    """Timers of the router (seconds). The thesis runs its loop at 2 Hz."""
+
+    heartbeat_period_s: float = 0.5
+    neighbour_timeout_s: float = 2.0
+    full_dump_period_s: float = 2.0
+    incremental_min_interval_s: float = 0.25
+    default_ttl: int = 32
+    dedup_memory: int = 4096
+    reassembly_timeout_s: float = 5.0
+
+
+@dataclass
+class RouteEntry:
+    """One row of the route table (swarm_msgs/RouteEntry)."""
+
+    destination: int
+    next_hop: int
+    hop_count: int
+    sequence_number: int
+    changed: bool = True
+
+
+@dataclass(frozen=True)
+class Delivered:
+    """An application payload for this agent: heartbeat info, routed data or a flood."""
+
+    origin: int
+    kind: int
+    payload: bytes
+
+
+@dataclass
+class RouterOutput:
+    """What one received packet causes: frames to send and payloads for the app."""
+
+    packets: list[Packet] = field(default_factory=list)
+    delivered: list[Delivered] = field(default_factory=list)
+
+
+class DsdvRouter:
+    """DSDV routing for one agent; see the module docstring."""
+
+    def __init__(self, node_id: int, config: DsdvConfig | None = None) -> None:
+        self.id = int(node_id)
+        self.config = config or DsdvConfig()
+        self.sequence = 0                       # own destination sequence number (even)
+        self.table: dict[int, RouteEntry] = {}
+        self.heard: dict[int, float] = {}       # neighbour -> last time heard
+        self._info = b''
+        self._tx_seq = 0
+        self._flood_id = 0
+        self._frag_id = 0
+        self._next_heartbeat = 0.0
+        self._next_full = 0.0
+        self._last_incremental = -1e9
+        self._seen: OrderedDict[tuple[int, int], None] = OrderedDict()
+        self._partial: dict[tuple[int, int, int], tuple[float, dict[int, bytes]]] = {}
+        self.stats: dict[str, int] = {}
+
+    # ------------------------------------------------------------------ helpers
+    def _count(self, key: str, n: int = 1) -> None:
+        self.stats[key] = self.stats.get(key, 0) + n
+
+    def _packet(self, destination: int, kind: int, payload: bytes,
+                ttl: int | None = None) -> Packet:
+        self._tx_seq = (self._tx_seq + 1) & 0xFFFF
+        self._count('packets_sent')
+        self._count('bytes_sent', len(payload))
+        return Packet(self.id, destination, int(kind), self._tx_seq,
+                      self.config.default_ttl if ttl is None else ttl, payload)
+
+    def set_heartbeat_info(self, info: bytes) -> None:
+        """Small application blob carried by every heartbeat (at most 96 bytes)."""
+        self._info = bytes(info)
+
+    # ------------------------------------------------------------------ queries
+    def routes(self) -> list[RouteEntry]:
+        """The route table, sorted by destination (own entry excluded)."""
+        return [self.table[d] for d in sorted(self.table)]
+
+    def neighbours(self) -> set[int]:
+        """Direct neighbours currently heard."""
+        return set(self.heard)
+
+    def reachable(self) -> set[int]:
+        """Destinations with a finite route."""
+        return {d for d, r in self.table.items() if r.hop_count < INFINITE_HOPS}
+
+    def next_hop(self, destination: int) -> int | None:
+        route = self.table.get(destination)
+        return route.next_hop if route and route.hop_count < INFINITE_HOPS else None
+
+    # ------------------------------------------------------------------ timers
+    def tick(self, t: float) -> list[Packet]:
+        """Heartbeats, neighbour timeouts, full dumps and triggered updates due at ``t``."""
+        out: list[Packet] = []
+        for neighbour, last in list(self.heard.items()):
+            if t - last > self.config.neighbour_timeout_s:
+                self._break_link(neighbour)
+        if t >= self._next_heartbeat:
+            self._next_heartbeat = t + self.config.heartbeat_period_s
+            out.append(self._packet(BROADCAST, Kind.HEARTBEAT,
+                                    wire.encode_heartbeat(self.sequence, self._info), ttl=1))
+        if t >= self._next_full:
+            self._next_full = t + self.config.full_dump_period_s
+            self.sequence += 2
+            adverts = [Advert(self.id, 0, self.sequence)] + [
+                Advert(r.destination, r.hop_count, r.sequence_number) for r in self.routes()]
+            for frame in wire.encode_adverts(self.sequence, adverts):
+                out.append(self._packet(BROADCAST, Kind.DSDV_FULL, frame, ttl=1))
+            for r in self.table.values():
+                r.changed = False
+            self._last_incremental = t
+        elif (t - self._last_incremental >= self.config.incremental_min_interval_s
+              and any(r.changed for r in self.table.values())):
+            changed = [r for r in self.routes() if r.changed]
+            adverts = [Advert(r.destination, r.hop_count, r.sequence_number) for r in changed]
+            for frame in wire.encode_adverts(self.sequence, adverts):
+                out.append(self._packet(BROADCAST, Kind.DSDV_INCREMENTAL, frame, ttl=1))
+            for r in changed:
+                r.changed = False
+            self._last_incremental = t
+        for key, (started, _) in list(self._partial.items()):
+            if t - started > self.config.reassembly_timeout_s:
+                del self._partial[key]
+                self._count('fragments_expired')
+        return out
+
+    def _break_link(self, neighbour: int) -> None:
+        """Fig. 3.9: every route through the neighbour gets hops = inf and an odd sequence."""
+        self.heard.pop(neighbour, None)
+        for route in self.table.values():
+            if route.next_hop == neighbour and route.hop_count < INFINITE_HOPS:
+                route.hop_count = INFINITE_HOPS
+                route.sequence_number += 1 if route.sequence_number % 2 == 0 else 2
+                route.changed = True
+        self._count('link_breaks')
+
+    # ------------------------------------------------------------------ receive
+    def on_packet(self, t: float, packet: Packet) -> RouterOutput:
+        """Handle one frame heard on the radio."""
+        out = RouterOutput()
+        if packet.source == self.id:
+            return out
+        if packet.destination not in (self.id, BROADCAST):
+            self._count('not_for_me')
+            return out
+        try:
+            kind = Kind(packet.kind)
+        except ValueError:
+            self._count('rejected_unknown_kind')
+            return out
+        try:
+            if kind == Kind.HEARTBEAT:
+                seq, info = wire.decode_heartbeat(packet.payload)
+                self._heard(t, packet.source, seq)
+                out.delivered.append(Delivered(packet.source, Kind.HEARTBEAT, info))
+            elif kind in (Kind.DSDV_FULL, Kind.DSDV_INCREMENTAL):
+                seq, adverts = wire.decode_adverts(packet.payload)
+                self._heard(t, packet.source, None)
+                self._merge(packet.source, adverts)
+            elif kind == Kind.DATA:
+                self._on_data(t, packet, out)
+            elif kind == Kind.FLOOD:
+                self._on_flood(t, packet, out)
+            else:
+                self._count('rejected_unknown_kind')
+        except WireError as exc:
+            self._count('rejected_malformed')
+            LOG.debug('agent %d dropped a %s frame from %d: %s', self.id, kind.name,
+                      packet.source, exc)
+        return out
+
+    def _heard(self, t: float, neighbour: int, seq: int | None) -> None:
+        """Link addition (Fig. 3.8): a neighbour heard directly is a one-hop route.
+
+        A heartbeat carries the neighbour's own (even) sequence number. If we had
+        marked the route broken (odd number), the direct link is proof enough: the
+        route is restored with the next even number, which outbids the break.
+        """
+        self.heard[neighbour] = t
+        route = self.table.get(neighbour)
+        if seq is None:
+            if route is None:
+                self.table[neighbour] = RouteEntry(neighbour, neighbour, 1, 0)
+            return
+        if (route is not None and route.hop_count == 1 and route.next_hop == neighbour
+                and seq <= route.sequence_number):
+            return
+        best = seq if route is None else max(seq, route.sequence_number
+                                             + route.sequence_number % 2)
+        self.table[neighbour] = RouteEntry(neighbour, neighbour, 1, best)
+
+    def _merge(self, neighbour: int, adverts: list[Advert]) -> None:
+        """Apply the two selection rules (3.1.2.1) to a neighbour's adverts."""
+        for adv in adverts:
+            dest = adv.destination
+            if dest == self.id:
+                if adv.sequence > self.sequence:
+                    # Someone holds a newer (odd, broken) number for us: outbid it.
+                    self.sequence = adv.sequence + 1 if adv.sequence % 2 else adv.sequence + 2
+                continue
+            hops = INFINITE_HOPS if adv.hops >= INFINITE_HOPS - 1 else adv.hops + 1
+            current = self.table.get(dest)
+            if current is None:
+                if hops < INFINITE_HOPS:
+                    self.table[dest] = RouteEntry(dest, neighbour, hops, adv.sequence)
+                continue
+            newer = adv.sequence > current.sequence_number
+            if hops >= INFINITE_HOPS:
+                # Fig. 3.9: a newer broken-link advert invalidates the stale route.
+                if newer:
+                    current.hop_count = INFINITE_HOPS
+                    current.sequence_number = adv.sequence
+                    current.changed = True
+                continue
+            if newer or (adv.sequence == current.sequence_number and hops < current.hop_count):
+                changed = current.next_hop != neighbour or current.hop_count != hops
+                current.next_hop = neighbour
+                current.hop_count = hops
+                current.sequence_number = adv.sequence
+                current.changed = current.changed or changed
+
+    # ------------------------------------------------------------------ data plane
+    def send(self, t: float, destination: int, payload: bytes) -> list[Packet]:
+        """Routed unicast to ``destination`` (fragmented when longer than one frame)."""
+        hop = self.next_hop(destination)
+        if hop is None:
+            self._count('no_route')
+            return []
+        self._frag_id = (self._frag_id + 1) & 0xFFFF
+        return [self._packet(hop, Kind.DATA, wire.encode_routed(self.id, destination, chunk))
+                for chunk in wire.split_message(bytes(payload), self._frag_id)]
+
+    def broadcast(self, t: float, payload: bytes) -> list[Packet]:
+        """Flood to the whole mesh, deduplicated by every receiver."""
+        self._frag_id = (self._frag_id + 1) & 0xFFFF
+        out = []
+        for chunk in wire.split_message(bytes(payload), self._frag_id):
+            self._flood_id = (self._flood_id + 1) & 0xFFFF
+            self._remember((self.id, self._flood_id))
+            out.append(self._packet(BROADCAST, Kind.FLOOD,
+                                    wire.encode_routed(self.id, self._flood_id, chunk)))
+        return out
+
+    def _remember(self, key: tuple[int, int]) -> bool:
+        """Record a flood id; False if it was already seen."""
+        if key in self._seen:
+            return False
+        self._seen[key] = None
+        if len(self._seen) > self.config.dedup_memory:
+            self._seen.popitem(last=False)
+        return True
+
+    def _on_data(self, t: float, packet: Packet, out: RouterOutput) -> None:
+        origin, final, chunk = wire.decode_routed(packet.payload)
+        if final == self.id:
+            self._deliver(t, origin, Kind.DATA, chunk, out)
+            return
+        if packet.ttl <= 1:
+            self._count('dropped_ttl')
+            return
+        hop = self.next_hop(final)
+        if hop is None:
+            self._count('no_route')
+            return
+        self._count('forwarded')
+        out.packets.append(self._packet(hop, Kind.DATA, packet.payload, ttl=packet.ttl - 1))
+
+    def _on_flood(self, t: float, packet: Packet, out: RouterOutput) -> None:
+        origin, flood_id, chunk = wire.decode_routed(packet.payload)
+        if not self._remember((origin, flood_id)):
+            self._count('duplicates')
+            return
+        self._deliver(t, origin, Kind.FLOOD, chunk, out)
+        if packet.ttl > 1:
+            self._count('forwarded')
+            out.packets.append(self._packet(BROADCAST, Kind.FLOOD, packet.payload,
+                                            ttl=packet.ttl - 1))
+        else:
+            self._count('dropped_ttl')
+
+    def _deliver(self, t: float, origin: int, kind: int, chunk: bytes,
+                 out: RouterOutput) -> None:
+        message, frag = wire.parse_chunk(chunk)
+        if frag is None:
+            out.delivered.append(Delivered(origin, kind, message))
+            self._count('delivered')
+            return
+        frag_id, index, count = frag
+        key = (origin, frag_id, count)
+        started, pieces = self._partial.setdefault(key, (t, {}))
+        pieces[index] = message
+        if len(pieces) == count:
+            del self._partial[key]
+            out.delivered.append(Delivered(origin, kind, b''.join(pieces[i]
+                                                                  for i in range(count))))
+            self._count('delivered')

@@ -1,0 +1,109 @@
+"""Trilateration from TOA ranges to beacons (thesis 3.1.1, eqs. 3.8-3.27).
+
+Subtracting the last beacon's range equation from the others linearises the problem
+(eqs. 3.8-3.12): A p = b with A_k = 2 (p_n - p_k) and b_k = r_k^2 - r_n^2 - |p_k|^2 +
+|p_n|^2. Three beacons give the unique solution, more give least squares (eq. 3.17,
+numpy.linalg.lstsq). Gauss-Newton on the original range residuals (eqs. 3.20-3.27)
+refines the estimate, and starts from the propagated estimate when A is rank
+deficient. Degenerate geometry (coincident or collinear beacons without a prior) raises
+``DegenerateGeometryError`` instead of returning garbage.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+class DegenerateGeometryError(ValueError):
+    """Beacons placed so that the position is not determined by their ranges."""
+
+
+@dataclass(frozen=True)
+class TrilaterationResult:
+    """Position (m), its covariance (m^2), the method used and the RMS range residual."""
+
+    position: np.ndarray
+    covariance: np.ndarray
+    method: str
+    residual: float
+
+
+def _check(beacons: np.ndarray, ranges: np.ndarray) -> None:
+    if beacons.ndim != 2 or beacons.shape[1] != 2 or len(beacons) != len(ranges):
+        raise ValueError(f'need (n,2) beacons and n ranges, got {beacons.shape} and '
+                         f'{ranges.shape}')
+    if not (np.all(np.isfinite(beacons)) and np.all(np.isfinite(ranges))):
+        raise ValueError('beacon positions and ranges must be finite (NaN/inf given)')
+    if np.any(ranges < 0):
+        raise ValueError('ranges must be non-negative')
+
+
+def geometry_rank(beacons: np.ndarray, tol: float = 1e-3) -> int:
+    """Rank of the linearised system's matrix: 2 when the beacons span the plane."""
+    if len(beacons) < 2:
+        return 0
+    a = 2.0 * (beacons[-1] - beacons[:-1])
+    s = np.linalg.svd(a, compute_uv=False)
+    return int(np.sum(s > tol * max(1.0, s[0] if len(s) else 1.0)))
+
+
+def gauss_newton(beacons: np.ndarray, ranges: np.ndarray, start: np.ndarray,
+                 iterations: int = 10) -> np.ndarray:
+    """Eqs. 3.20-3.27: minimise sum (|p - p_k| - r_k)^2 from ``start``."""
+    p = np.asarray(start, dtype=float).copy()
+    for _ in range(iterations):
+        diff = p - beacons
+        dist = np.maximum(np.linalg.norm(diff, axis=1), 1e-9)
+        jac = diff / dist[:, None]
+        res = dist - ranges
+        step, *_ = np.linalg.lstsq(jac, -res, rcond=None)
+        p = p + step
+        if np.hypot(*step) < 1e-6:
+            break
+    return p
+
+
+def trilaterate(beacons, ranges, initial=None, range_std: float = 0.3) -> TrilaterationResult:
+    """Position from ranges to >= 3 beacons; see the module docstring."""
+    beacons = np.asarray(beacons, dtype=float).reshape(-1, 2)
+    ranges = np.asarray(ranges, dtype=float).reshape(-1)
+    _check(beacons, ranges)
+    if len(beacons) < 3 and initial is None:
+        raise DegenerateGeometryError(f'{len(beacons)} beacons cannot fix a 2-D position; '
+                                      'at least 3 are needed')
+    rank = geometry_rank(beacons)
+    if rank < 2:
+        if initial is None:
+            raise DegenerateGeometryError(
+                'beacons are coincident or collinear: the position is ambiguous; '
+                'provide a prior estimate or wait for better-spread beacons')
+        p = gauss_newton(beacons, ranges, np.asarray(initial, dtype=float))
+        method = 'gauss-newton (rank-deficient)'
+    else:
+        a = 2.0 * (beacons[-1] - beacons[:-1])
+        b = (ranges[:-1] ** 2 - ranges[-1] ** 2 - np.sum(beacons[:-1] ** 2, axis=1)
+             + np.sum(beacons[-1] ** 2))
+        p, *_ = np.linalg.lstsq(a, b, rcond=None)
+        method = 'linear' if len(beacons) == 3 else 'least-squares'
+        p = gauss_newton(beacons, ranges, p)
+        method += '+gauss-newton'
+    diff = p - beacons
+    dist = np.maximum(np.linalg.norm(diff, axis=1), 1e-9)
+    jac = diff / dist[:, None]
+    info = jac.T @ jac
+    if np.linalg.matrix_rank(info) < 2:
+        cov = np.eye(2) * 1e6
+    else:
+        cov = range_std ** 2 * np.linalg.inv(info)
+    residual = float(np.sqrt(np.mean((dist - ranges) ** 2)))
+    return TrilaterationResult(p, cov, method, residual)
+
+
+def crlb(beacons, position, range_std: float) -> np.ndarray:
+    """Cramer-Rao lower bound (2x2) of any unbiased position estimate from the ranges."""
+    beacons = np.asarray(beacons, dtype=float).reshape(-1, 2)
+    diff = np.asarray(position, dtype=float) - beacons
+    u = diff / np.maximum(np.linalg.norm(diff, axis=1), 1e-9)[:, None]
+    return range_std ** 2 * np.linalg.inv(u.T @ u)

@@ -1,0 +1,122 @@
+"""Compact binary wire format of the DSDV mesh (thesis 3.1.2); every frame <= 100 bytes.
+
+Little-endian layouts (the packet header itself travels in swarm_msgs/RadioPacket or
+the XBee frame around it):
+
+- HEARTBEAT: ``u32 own_sequence`` + application info blob (the sender's NeighbourInfo).
+- DSDV_FULL / DSDV_INCREMENTAL: ``u32 sender_sequence, u8 count`` + count x
+  ``(u16 destination, u8 hops, u32 destination_sequence)``; 13 entries per frame.
+- DATA (routed unicast): ``u16 origin, u16 final_destination`` + app chunk.
+- FLOOD (mesh-wide broadcast): ``u16 origin, u16 flood_id`` + app chunk.
+- app chunk: ``u8 0`` + whole message, or ``u8 1, u16 fragment_id, u8 index, u8 count`` +
+  piece, for messages longer than one frame (reassembled at the destination).
+
+Decoders raise ``WireError`` (a ValueError) naming what is wrong; the router catches
+and counts them, so malformed bytes never reach the agent loop.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import struct
+
+from swarm_agent.packet import MAX_PAYLOAD
+
+INFINITE_HOPS = 255
+_HB = struct.Struct('<I')
+_ADV_HEAD = struct.Struct('<IB')
+_ADV_ENTRY = struct.Struct('<HBI')
+_ROUTED = struct.Struct('<HH')
+_FRAG = struct.Struct('<BHBB')
+ADV_PER_FRAME = (MAX_PAYLOAD - _ADV_HEAD.size) // _ADV_ENTRY.size
+CHUNK_WHOLE = 0
+CHUNK_FRAGMENT = 1
+MAX_CHUNK = MAX_PAYLOAD - _ROUTED.size - _FRAG.size  # app bytes per fragment
+MAX_WHOLE = MAX_PAYLOAD - _ROUTED.size - 1
+
+
+class WireError(ValueError):
+    """Bytes that are not a valid frame of the given kind."""
+
+
+@dataclass(frozen=True)
+class Advert:
+    """One advertised route: destination, hop count (255 = broken), its sequence number."""
+
+    destination: int
+    hops: int
+    sequence: int
+
+
+def encode_heartbeat(sequence: int, info: bytes) -> bytes:
+    if _HB.size + len(info) > MAX_PAYLOAD:
+        raise WireError(f'heartbeat info of {len(info)} bytes exceeds one frame')
+    return _HB.pack(sequence & 0xFFFFFFFF) + info
+
+
+def decode_heartbeat(data: bytes) -> tuple[int, bytes]:
+    if len(data) < _HB.size:
+        raise WireError(f'heartbeat truncated to {len(data)} bytes')
+    return _HB.unpack_from(data)[0], bytes(data[_HB.size:])
+
+
+def encode_adverts(sender_sequence: int, adverts: list[Advert]) -> list[bytes]:
+    """Route adverts split into frames of at most ADV_PER_FRAME entries."""
+    frames = []
+    for k in range(0, max(len(adverts), 1), ADV_PER_FRAME):
+        part = adverts[k:k + ADV_PER_FRAME]
+        frames.append(_ADV_HEAD.pack(sender_sequence & 0xFFFFFFFF, len(part)) + b''.join(
+            _ADV_ENTRY.pack(a.destination, min(a.hops, INFINITE_HOPS), a.sequence & 0xFFFFFFFF)
+            for a in part))
+    return frames
+
+
+def decode_adverts(data: bytes) -> tuple[int, list[Advert]]:
+    if len(data) < _ADV_HEAD.size:
+        raise WireError(f'advert truncated to {len(data)} bytes')
+    seq, count = _ADV_HEAD.unpack_from(data)
+    if len(data) != _ADV_HEAD.size + count * _ADV_ENTRY.size:
+        raise WireError(f'advert of {count} entries must be '
+                        f'{_ADV_HEAD.size + count * _ADV_ENTRY.size} bytes, got {len(data)}')
+    adverts = [Advert(*_ADV_ENTRY.unpack_from(data, _ADV_HEAD.size + i * _ADV_ENTRY.size))
+               for i in range(count)]
+    return seq, adverts
+
+
+def encode_routed(origin: int, second: int, chunk: bytes) -> bytes:
+    """DATA (second = final destination) or FLOOD (second = flood id) frame payload."""
+    return _ROUTED.pack(origin, second & 0xFFFF) + chunk
+
+
+def decode_routed(data: bytes) -> tuple[int, int, bytes]:
+    if len(data) < _ROUTED.size + 1:
+        raise WireError(f'routed frame truncated to {len(data)} bytes')
+    origin, second = _ROUTED.unpack_from(data)
+    return origin, second, bytes(data[_ROUTED.size:])
+
+
+def split_message(message: bytes, fragment_id: int) -> list[bytes]:
+    """App message -> chunks (one whole chunk, or fragments)."""
+    if len(message) <= MAX_WHOLE:
+        return [bytes([CHUNK_WHOLE]) + message]
+    pieces = [message[k:k + MAX_CHUNK] for k in range(0, len(message), MAX_CHUNK)]
+    if len(pieces) > 255:
+        raise WireError(f'message of {len(message)} bytes needs more than 255 fragments')
+    return [_FRAG.pack(CHUNK_FRAGMENT, fragment_id & 0xFFFF, i, len(pieces)) + p
+            for i, p in enumerate(pieces)]
+
+
+def parse_chunk(chunk: bytes) -> tuple[bytes | None, tuple[int, int, int] | None]:
+    """(whole message, None) or (piece, (fragment id, index, count))."""
+    if not chunk:
+        raise WireError('empty chunk')
+    if chunk[0] == CHUNK_WHOLE:
+        return bytes(chunk[1:]), None
+    if chunk[0] == CHUNK_FRAGMENT:
+        if len(chunk) <= _FRAG.size:
+            raise WireError(f'fragment truncated to {len(chunk)} bytes')
+        _, frag_id, index, count = _FRAG.unpack_from(chunk)
+        if count == 0 or index >= count:
+            raise WireError(f'fragment index {index} outside count {count}')
+        return bytes(chunk[_FRAG.size:]), (frag_id, index, count)
+    raise WireError(f'unknown chunk type {chunk[0]}')
