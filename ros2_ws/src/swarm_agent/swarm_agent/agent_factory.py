@@ -15,6 +15,7 @@ from swarm_agent.brain import AgentBrain, BrainConfig
 from swarm_agent.localization import LocalizationConfig
 from swarm_agent.lqr import design_lqr
 from swarm_mission.robot_types import (
+    GRAVITY,
     load_lqr_design,
     load_robot_types,
     parse_type_counts,
@@ -40,8 +41,11 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
         agent_id=agent_id, agent_type=agent_type, is_beacon=is_beacon or external_pose,
         method=method, outer_period_s=outer_period_s, localization=loc,
         type_radii={t: r.coverage_radius for t, r in types.items()})
+    # eq. 3.111's u_max shapes the LQR weights of the linear model; the actuator must
+    # also overcome Coulomb friction (mu_1 m g is 3.1 N for type 3, above u_max alone).
+    u_limit = design.u_max + 2.0 * robot.dry_friction * robot.mass * GRAVITY
     return AgentBrain(config, robot, gains, initial_position,
-                      np.random.default_rng(seed), u_max=design.u_max)
+                      np.random.default_rng(seed), u_max=u_limit)
 
 
 def type_counts_from(spec: str | dict[int, int]) -> dict[int, int]:

@@ -87,6 +87,8 @@ class BrainConfig:
     range_stale_s: float = 2.0           # TOA ranges older than this are not used
     forces_contour_step: float = 0.05    # m, boundary sample spacing for the forces method
     forces_speed_per_newton: float = 0.002  # m/s per N: forces method setpoint scaling
+    hold_radius: float = 0.3             # m: within this of the goal the agent parks
+    resume_radius: float = 0.8           # m: a parked agent moves again beyond this
     localization: LocalizationConfig = field(default_factory=LocalizationConfig)
     dsdv: DsdvConfig = field(default_factory=DsdvConfig)
     setpoint: SetpointParams = field(default_factory=SetpointParams)
@@ -161,6 +163,7 @@ class AgentBrain:
         self._next_localization = config.localization.period_s
         self._setpoint = np.zeros(2)
         self._force = np.zeros(2)
+        self._parked = False
         # Shape and goals
         self.shape: Shape | None = None
         self.shape_version = 0
@@ -258,7 +261,9 @@ class AgentBrain:
             self._outer(t)
         self.router.set_heartbeat_info(self._info().encode())
         self._outbox.extend(self.router.tick(t))
-        if dt > 0.0:
+        if self._parked:
+            self._force = np.zeros(2)
+        elif dt > 0.0:
             self._force = self.loop.step(dt, self._setpoint, self.localizer.velocity)
         packets, self._outbox = self._outbox, []
         return BrainOutput(packets, self._force.copy(), self._setpoint.copy())
@@ -323,9 +328,11 @@ class AgentBrain:
         if mode == Mode.RETURN_HOME:
             # 3.1.3: head for the centre of the formation to meet beacons again.
             target = np.asarray(self.localizer.home, dtype=float)
+            self._parked = False
             self._setpoint = self._setpoint_towards(target, neighbours)
             return
         if self.config.method == 'forces':
+            self._parked = False
             self._setpoint = self._forces_setpoint(neighbours)
             return
         rnd = self._round(t)
@@ -336,8 +343,26 @@ class AgentBrain:
             self._report_costs(rnd)
         self._assign(rnd - 1)
         goal = next((g for g in self._my_goals if g.id == self.goal_id), None)
-        target = position if goal is None else np.array([goal.x, goal.y])
+        if goal is None:
+            self._park()
+            return
+        target = np.array([goal.x, goal.y])
+        distance = float(np.hypot(*(target - position)))
+        # Hysteresis around the goal: do not chase localization noise (the estimate
+        # jumps by a few decimetres at every trilateration); park and brake instead.
+        if distance < self.config.hold_radius or (
+                self._parked and distance < self.config.resume_radius):
+            self._park()
+            return
+        self._parked = False
         self._setpoint = self._setpoint_towards(target, neighbours)
+
+    def _park(self) -> None:
+        """Stop at the goal: zero setpoint, zero force, integral state cleared."""
+        if not self._parked:
+            self.loop.reset()
+        self._parked = True
+        self._setpoint = np.zeros(2)
 
     def _report_costs(self, rnd: int) -> None:
         goals = np.array([[g.x, g.y] for g in self._my_goals])

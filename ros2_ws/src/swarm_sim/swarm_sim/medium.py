@@ -1,0 +1,179 @@
+"""The radio medium of the simulated mesh (thesis 4.1), shared by sim_node and the evaluator.
+
+Two robots share a link when they are within ``range_m`` (25 m) and the segment between
+them crosses no obstacle (line of sight, shapely STRtree over the obstacles, tested
+only for the pairs in range, found with a KD-tree). Every transmission is heard by
+each linked receiver independently, with probability ``1 - loss``, after the sender's
+airtime (frames are serialised at ``bandwidth_bps`` per sender) plus ``latency_s``.
+TOA ranges to beacons that are direct neighbours are the true distance plus Gaussian
+noise of ``range_noise_std``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+import heapq
+
+import numpy as np
+from scipy.spatial import cKDTree
+import shapely
+from shapely.geometry import Polygon
+
+from swarm_agent.packet import BROADCAST, Packet
+
+FRAME_OVERHEAD_BYTES = 18  # XBee API frame + 802.15.4 header around the payload
+
+
+@dataclass
+class MediumConfig:
+    """Radio parameters (YAML defaults in swarm_sim/config/medium.yaml)."""
+
+    range_m: float = 25.0            # thesis 4.1
+    line_of_sight: bool = True       # thesis 4.1: obstacles cut links
+    loss: float = 0.0                # per-receiver packet loss probability
+    latency_s: float = 0.005         # propagation + processing
+    bandwidth_bps: float = 250_000.0  # 802.15.4 / XBee air rate
+    range_noise_std: float = 0.3     # m, TOA ranging noise (not given by the thesis)
+
+
+@dataclass
+class MediumStats:
+    """Counters since creation."""
+
+    sent: int = 0
+    delivered: int = 0
+    dropped_loss: int = 0
+    dropped_range: int = 0
+    dropped_dead: int = 0
+    bytes_sent: int = 0
+
+
+class RadioMedium:
+    """Links, losses, delays and TOA ranges; see the module docstring."""
+
+    def __init__(self, config: MediumConfig, rng: np.random.Generator,
+                 obstacles: Sequence[Polygon] = ()) -> None:
+        if not 0.0 <= config.loss <= 1.0:
+            raise ValueError(f'packet loss must be in [0, 1], got {config.loss}')
+        self.config = config
+        self.rng = rng
+        self.stats = MediumStats()
+        self.ids: list[int] = []
+        self.index: dict[int, int] = {}
+        self.positions = np.zeros((0, 2))
+        self._links: np.ndarray = np.zeros((0, 0), dtype=bool)
+        self._neighbours: dict[int, list[int]] = {}
+        self._dead: set[int] = set()
+        self._queue: list[tuple[float, int, int, Packet]] = []
+        self._busy_until: dict[int, float] = {}
+        self._counter = 0
+        self.set_obstacles(obstacles)
+
+    def set_obstacles(self, obstacles: Sequence[Polygon]) -> None:
+        """Replace the obstacles that block line of sight."""
+        self.obstacles = [o for o in obstacles if o is not None and not o.is_empty]
+        self._tree = shapely.STRtree(self.obstacles) if self.obstacles else None
+
+    def set_loss(self, loss: float) -> None:
+        if not 0.0 <= loss <= 1.0:
+            raise ValueError(f'packet loss must be in [0, 1], got {loss}')
+        self.config.loss = loss
+
+    def disable_radio(self, agent_id: int) -> None:
+        self._dead.add(int(agent_id))
+
+    def enable_radio(self, agent_id: int) -> None:
+        self._dead.discard(int(agent_id))
+
+    def remove(self, agent_id: int) -> None:
+        """The robot is gone: no more links, queued frames to it are dropped."""
+        self._dead.add(int(agent_id))
+
+    def update_positions(self, ids: Sequence[int], positions) -> None:
+        """True positions (N, 2) of the robots; recomputes the link graph."""
+        self.ids = [int(i) for i in ids]
+        self.index = {a: k for k, a in enumerate(self.ids)}
+        self.positions = np.asarray(positions, dtype=float).reshape(-1, 2)
+        n = len(self.ids)
+        links = np.zeros((n, n), dtype=bool)
+        if n > 1:
+            pairs = cKDTree(self.positions).query_pairs(self.config.range_m,
+                                                        output_type='ndarray')
+            if len(pairs):
+                ok = np.ones(len(pairs), dtype=bool)
+                if self.config.line_of_sight and self._tree is not None:
+                    lines = shapely.linestrings(np.stack(
+                        [self.positions[pairs[:, 0]], self.positions[pairs[:, 1]]], axis=1))
+                    hit = self._tree.query(lines, predicate='intersects')
+                    ok[np.unique(hit[0])] = False
+                p = pairs[ok]
+                links[p[:, 0], p[:, 1]] = True
+                links[p[:, 1], p[:, 0]] = True
+        dead = [self.index[d] for d in self._dead if d in self.index]
+        links[dead, :] = False
+        links[:, dead] = False
+        self._links = links
+        self._neighbours = {a: [self.ids[j] for j in np.flatnonzero(links[k])]
+                            for k, a in enumerate(self.ids)}
+
+    def neighbours(self, agent_id: int) -> list[int]:
+        return list(self._neighbours.get(int(agent_id), []))
+
+    def adjacency(self) -> tuple[list[int], np.ndarray]:
+        return list(self.ids), self._links.copy()
+
+    def transmit(self, t: float, packet: Packet) -> None:
+        """Queue a frame; each receiver in range draws its own loss."""
+        sender = int(packet.source)
+        self.stats.sent += 1
+        self.stats.bytes_sent += len(packet.payload)
+        if sender in self._dead or sender not in self.index:
+            self.stats.dropped_dead += 1
+            return
+        airtime = 8.0 * (len(packet.payload) + FRAME_OVERHEAD_BYTES) / self.config.bandwidth_bps
+        start = max(t, self._busy_until.get(sender, t))
+        self._busy_until[sender] = start + airtime
+        arrival = start + airtime + self.config.latency_s
+        receivers = self._neighbours.get(sender, [])
+        if packet.destination != BROADCAST:
+            if packet.destination not in receivers:
+                self.stats.dropped_range += 1
+                return
+            receivers = [packet.destination]
+        if not receivers:
+            return
+        keep = self.rng.random(len(receivers)) >= self.config.loss
+        self.stats.dropped_loss += int(np.sum(~keep))
+        for receiver, ok in zip(receivers, keep):
+            if ok:
+                self._counter += 1
+                heapq.heappush(self._queue, (arrival, self._counter, receiver, packet))
+
+    def deliver(self, t: float) -> list[tuple[int, Packet]]:
+        """Frames whose arrival time is <= t, in arrival order, as (receiver, packet)."""
+        out = []
+        while self._queue and self._queue[0][0] <= t:
+            _, _, receiver, packet = heapq.heappop(self._queue)
+            if receiver in self._dead:
+                self.stats.dropped_dead += 1
+                continue
+            out.append((receiver, packet))
+        self.stats.delivered += len(out)
+        return out
+
+    def toa_ranges(self, receiver: int, beacon_ids: Iterable[int]
+                   ) -> list[tuple[int, float, float]]:
+        """(beacon id, measured range, std) for the beacons that are direct neighbours."""
+        receiver = int(receiver)
+        if receiver in self._dead or receiver not in self.index:
+            return []
+        near = set(self._neighbours.get(receiver, []))
+        me = self.positions[self.index[receiver]]
+        out = []
+        std = self.config.range_noise_std
+        for b in beacon_ids:
+            if b in near:
+                true = float(np.hypot(*(self.positions[self.index[b]] - me)))
+                out.append((int(b), max(0.0, true + float(self.rng.normal(0.0, std))), std))
+        return out
