@@ -1,0 +1,71 @@
+"""agent_node in-process: it speaks DSDV on /radio/tx, takes goals, and reports state."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+
+from geometry_msgs.msg import PoseWithCovarianceStamped, WrenchStamped  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import QoSProfile  # noqa: E402
+
+from swarm_agent.agent_node import AgentNode  # noqa: E402
+from swarm_mission import qos  # noqa: E402
+from swarm_mission.conversions import goals_to_msg, shape_to_msg  # noqa: E402
+from swarm_mission.goals import Goal  # noqa: E402
+from swarm_mission.shapes import load_shape  # noqa: E402
+from swarm_msgs.msg import AgentState, FormationShape, GoalArray, RadioPacket, RouteTable  # noqa: E402
+
+
+def test_beacon_agent_drives_to_its_goal_and_reports(tmp_path):
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    executor = SingleThreadedExecutor(context=context)
+    agent = AgentNode('agent', namespace='/agent_5', context=context, parameter_overrides=[
+        Parameter('agent_id', value=5), Parameter('agent_type', value=2),
+        Parameter('is_beacon', value=True), Parameter('initial_x', value=-10.0),
+        Parameter('initial_y', value=0.0)])
+    probe = rclpy.create_node('probe', context=context)
+    executor.add_node(agent)
+    executor.add_node(probe)
+    got: dict[str, list] = {'tx': [], 'state': [], 'force': [], 'routes': []}
+    probe.create_subscription(RadioPacket, '/radio/tx', got['tx'].append,
+                              QoSProfile(**qos.RADIO))
+    probe.create_subscription(AgentState, '/agent_5/state', got['state'].append,
+                              QoSProfile(**qos.STATE))
+    probe.create_subscription(RouteTable, '/agent_5/routes', got['routes'].append,
+                              QoSProfile(**qos.STATE))
+    probe.create_subscription(WrenchStamped, '/agent_5/cmd_force', got['force'].append,
+                              QoSProfile(**qos.SENSOR))
+    shape_pub = probe.create_publisher(FormationShape, '/swarm/shape', QoSProfile(**qos.LATCHED))
+    goals_pub = probe.create_publisher(GoalArray, '/swarm/goals', QoSProfile(**qos.LATCHED))
+    gps_pub = probe.create_publisher(PoseWithCovarianceStamped, '/agent_5/gps',
+                                     QoSProfile(**qos.SENSOR))
+    try:
+        shape_pub.publish(shape_to_msg(load_shape('circle_314'), 1))
+        goals_pub.publish(goals_to_msg([Goal(0, 2, 3.0, 0.0, 0.3)], 1, 1, 'bubble'))
+        deadline = time.monotonic() + 20.0
+        while time.monotonic() < deadline and not (
+                got['state'] and got['state'][-1].assigned_goal == 0 and got['routes']):
+            fix = PoseWithCovarianceStamped()
+            fix.pose.pose.position.x = -10.0
+            fix.pose.covariance[0] = fix.pose.covariance[7] = 0.01
+            gps_pub.publish(fix)
+            executor.spin_once(timeout_sec=0.05)
+        assert got['tx'], 'no radio traffic (heartbeats) on /radio/tx'
+        assert all(m.source == 5 for m in got['tx'])
+        state = got['state'][-1]
+        assert state.id == 5 and state.type == 2 and state.is_beacon
+        assert state.assigned_goal == 0, 'a lone agent must take the only goal of its type'
+        assert state.rows_used == 1
+        # The goal is to the east (+x): the LQR force must push east.
+        assert max(f.wrench.force.x for f in got['force']) > 0.0
+    finally:
+        executor.shutdown()
+        agent.destroy_node()
+        probe.destroy_node()
+        rclpy.try_shutdown(context=context)
