@@ -275,6 +275,7 @@ def main(argv: list[str] | None = None) -> int:
     last_goal_version = 0
     crashed = None
     removed = 0
+    last_print = 0.0
     try:
         while True:
             time.sleep(0.5)
@@ -304,7 +305,11 @@ def main(argv: list[str] | None = None) -> int:
                     f'{args.agents}  settled={status["settled"]:3d}  normal={status["normal"]:3d}'
                     f'  lost={status["lost"]:3d}  home={status["return_home"]:3d}  '
                     f'goals v{status["goal_version"]}')
-            print(line, end='', flush=True)
+            if sys.stdout.isatty():
+                print(line, end='', flush=True)
+            elif time.monotonic() - last_print >= 10.0:
+                last_print = time.monotonic()
+                print(line.lstrip('\r'), flush=True)
             if t >= args.duration:
                 break
             if status['settled'] >= args.agents - removed and not removals and \

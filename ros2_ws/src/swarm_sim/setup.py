@@ -24,6 +24,8 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            'sim_node = swarm_sim.sim_node:main',
+            'monitor_node = swarm_sim.monitor_node:main',
         ],
     },
 )

@@ -25,7 +25,7 @@ def test_cost_row_quantises_to_centimetres_and_keeps_unreachable():
     assert len(CostRow.from_costs(1, 1, 1, 1, np.ones(20)).encode()) <= 100
 
 
-@pytest.mark.parametrize('bad', [b'', b'\x01', b'\x02' + bytes(5), bytes(20)])
+@pytest.mark.parametrize('bad', [b'', b'\x01', b'\x02' + bytes(5), bytes(24)])
 def test_malformed_bytes_are_rejected(bad):
     with pytest.raises(MeshMessageError):
         NeighbourInfo.decode(bad)

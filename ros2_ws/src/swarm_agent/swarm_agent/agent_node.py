@@ -205,12 +205,14 @@ class AgentNode(Node):
 
 
 def make_executor(context=None):
-    """The executor chosen by SWARM_EXECUTOR (``events``, default, or ``single``).
+    """The executor chosen by SWARM_EXECUTOR (``single``, default, or ``events``).
 
-    benchmarks/bench_executor.py: 50 composed nodes at 50 Hz cost 1.0 core with the
-    SingleThreadedExecutor and 0.44 core with rclpy.experimental.EventsExecutor.
+    benchmarks/bench_executor.py: 50 composed nodes at 50 Hz wall-clock timers cost 1.0
+    core with the SingleThreadedExecutor and 0.44 core with the EventsExecutor, but in
+    rclpy 7.1 the EventsExecutor's timers did not fire on /clock with use_sim_time
+    (agents froze in scripts/launch_swarm.py), so sim-time swarms use SingleThreaded.
     """
-    if os.environ.get('SWARM_EXECUTOR', 'events') == 'events':
+    if os.environ.get('SWARM_EXECUTOR', 'single') == 'events':
         try:
             from rclpy.experimental import EventsExecutor
             return EventsExecutor(context=context)

@@ -292,9 +292,11 @@ class AgentBrain:
     def _info(self) -> NeighbourInfo:
         pos = self.localizer.position
         vel = self.localizer.velocity
+        cov = np.asarray(self.localizer.covariance)
+        std = float(np.sqrt(max(0.5 * (cov[0, 0] + cov[1, 1]), 0.0)))
         return NeighbourInfo(self.config.agent_type, self.config.is_beacon,
                              int(self.localizer.mode), (float(pos[0]), float(pos[1])),
-                             (float(vel[0]), float(vel[1])), self.settled)
+                             (float(vel[0]), float(vel[1])), self.settled, std)
 
     def _fresh_neighbours(self, t: float) -> dict[int, NeighbourInfo]:
         stale = [k for k, n in self.neighbours.items()
@@ -311,7 +313,9 @@ class AgentBrain:
             for beacon_id, rng_m, std in self._ranges:
                 info = fresh.get(beacon_id)
                 if info is not None and info.is_beacon and info.mode == Mode.NORMAL:
-                    beacons.append((np.asarray(info.position, dtype=float), rng_m, std))
+                    # The beacon's own position uncertainty adds to the range noise.
+                    effective = math.hypot(std, info.position_std)
+                    beacons.append((np.asarray(info.position, dtype=float), rng_m, effective))
         self.localizer.localize(t, beacons)
 
     def _round(self, t: float) -> int:

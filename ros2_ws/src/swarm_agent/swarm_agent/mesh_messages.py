@@ -29,7 +29,7 @@ MSG_COST_ROW = 2
 COST_QUANTUM_M = 0.01          # cost resolution in metres
 COST_UNREACHABLE = 0xFFFFFFFF  # wire value of an infinite cost
 
-_INFO = struct.Struct('<BBBBffff')          # kind, type, flags, mode, x, y, vx, vy
+_INFO = struct.Struct('<BBBBfffff')         # kind, type, flags, mode, x, y, vx, vy, std
 _ROW_HEADER = struct.Struct('<BHBIIH')      # kind, agent, type, goal_version, round, count
 _ROW_COST = 'I'
 
@@ -51,12 +51,13 @@ class NeighbourInfo:
     position: tuple[float, float]
     velocity: tuple[float, float]
     settled: bool = False
+    position_std: float = 0.0  # m, standard deviation of the position estimate
 
     def encode(self) -> bytes:
-        """Pack into 20 bytes."""
+        """Pack into 24 bytes."""
         flags = (FLAG_BEACON if self.is_beacon else 0) | (FLAG_SETTLED if self.settled else 0)
         return _INFO.pack(MSG_NEIGHBOUR_INFO, self.agent_type, flags, self.mode,
-                          *self.position, *self.velocity)
+                          *self.position, *self.velocity, self.position_std)
 
     @classmethod
     def decode(cls, data: bytes) -> NeighbourInfo:
@@ -64,14 +65,15 @@ class NeighbourInfo:
         if len(data) != _INFO.size:
             raise MeshMessageError(
                 f'neighbour info must be {_INFO.size} bytes, got {len(data)}')
-        kind, agent_type, flags, mode, x, y, vx, vy = _INFO.unpack(data)
+        kind, agent_type, flags, mode, x, y, vx, vy, std = _INFO.unpack(data)
         if kind != MSG_NEIGHBOUR_INFO:
             raise MeshMessageError(f'not a neighbour info message (kind {kind})')
-        values = np.array([x, y, vx, vy])
-        if not np.all(np.isfinite(values)):
-            raise MeshMessageError('neighbour info carries a non-finite position or velocity')
+        values = np.array([x, y, vx, vy, std])
+        if not np.all(np.isfinite(values)) or std < 0:
+            raise MeshMessageError('neighbour info carries a non-finite position, velocity '
+                                   'or standard deviation')
         return cls(agent_type, bool(flags & FLAG_BEACON), mode, (x, y), (vx, vy),
-                   bool(flags & FLAG_SETTLED))
+                   bool(flags & FLAG_SETTLED), std)
 
 
 @dataclass(frozen=True)

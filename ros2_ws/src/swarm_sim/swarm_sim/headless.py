@@ -50,6 +50,7 @@ class Scenario:
     duration_s: float = 600.0
     control_dt: float = 0.02              # inner loop period (50 Hz)
     medium_update_s: float = 0.1          # how often links are recomputed
+    imu_period_s: float = 0.02            # IMU sample period (mean acceleration over it)
     range_period_s: float = 1.0           # TOA ranging rate
     gps_period_s: float = 1.0             # beacon GPS rate
     record_period_s: float = 0.5          # truth recording rate (2 Hz)
@@ -167,6 +168,7 @@ class HeadlessSwarm:
         steps = int(round(sc.duration_s / dt))
         every = {name: max(1, int(round(period / dt))) for name, period in (
             ('medium', sc.medium_update_s), ('range', sc.range_period_s),
+            ('imu', sc.imu_period_s),
             ('gps', sc.gps_period_s), ('record', sc.record_period_s))}
         rec: dict[str, list] = {k: [] for k in (
             'times', 'positions', 'velocities', 'estimates', 'modes', 'alive', 'goal_ids',
@@ -175,6 +177,7 @@ class HeadlessSwarm:
         forces = np.zeros((self.n, 2))
         settled_since: float | None = None
         self.medium.update_positions(self.ids, self.dynamics.positions)
+        imu_v = self.dynamics.velocities.copy()
         for k in range(steps + 1):
             t = k * dt
             while pending_shapes and pending_shapes[0].time <= t:
@@ -203,10 +206,14 @@ class HeadlessSwarm:
                 if brain is not None:
                     brain.on_packet(t, packet)
             # Sensors.
-            accel = self.imu.measure(self.dynamics.accelerations())
-            for i, brain in enumerate(self.brains):
-                if brain is not None:
-                    brain.on_imu(t, accel[i])
+            if k % every['imu'] == 0:
+                # Mean acceleration over the IMU interval, as sim_node measures it.
+                vel = self.dynamics.velocities
+                accel = self.imu.measure((vel - imu_v) / (every['imu'] * dt))
+                imu_v = vel.copy()
+                for i, brain in enumerate(self.brains):
+                    if brain is not None:
+                        brain.on_imu(t, accel[i])
             if k % every['range'] == 0:
                 for i, brain in enumerate(self.brains):
                     if brain is not None and not self.is_beacon[i]:

@@ -1,0 +1,389 @@
+"""sim_node: the simulated world of the swarm (replaces the thesis's Gazebo, 4.1).
+
+Owns the clock and steps the physics at ``physics_rate_hz``, paced to
+``real_time_factor`` (0: as fast as possible). Robots come from the fleet file, obstacles
+from the shape spec (``swarm_mission.shapes.load_shape``), physics from a backend:
+``pybullet`` (``swarm_sim.world``, rough terrain, rigid bodies) when available, else the
+``pointmass`` model shared with the headless evaluator.
+
+Topics
+  published  ``/clock`` (rosgraph_msgs/Clock)
+             ``/agent_K/imu`` (sensor_msgs/Imu, map-frame acceleration with bias + noise)
+             ``/agent_K/gps`` (geometry_msgs/PoseWithCovarianceStamped, beacons only)
+             ``/agent_K/ranges`` (swarm_msgs/RangeArray, TOA ranges to beacon neighbours)
+             ``/agent_K/radio/rx`` (swarm_msgs/RadioPacket, what the medium delivers)
+             ``/swarm/truth`` (swarm_msgs/SwarmTruth, for metrics only)
+             ``/swarm/markers`` (visualization_msgs/MarkerArray, for RViz)
+  subscribed ``/agent_K/cmd_force`` (geometry_msgs/WrenchStamped, N, map frame)
+             ``/radio/tx`` (swarm_msgs/RadioPacket, from every agent)
+             ``/swarm/kill`` (std_msgs/Int32MultiArray: robots to remove, a fault)
+
+Faults: ``/swarm/kill`` removes robots; the ``loss`` parameter changes packet loss at
+run time. Malformed force commands (NaN, huge) are rejected with one log line per robot.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+import sys
+import time
+
+from geometry_msgs.msg import PoseWithCovarianceStamped, WrenchStamped
+import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu
+from std_msgs.msg import Int32MultiArray
+from visualization_msgs.msg import Marker, MarkerArray
+
+from swarm_agent.conversions import packet_from_msg, packet_to_msg
+from swarm_mission import qos
+from swarm_mission.robot_types import load_robot_types
+from swarm_mission.shapes import load_shape, ShapeError
+from swarm_msgs.msg import AgentTruth, RadioPacket, RangeArray, RangeMeasurement, SwarmTruth
+from swarm_sim.fleet import FleetError, load_fleet
+from swarm_sim.medium import MediumConfig, RadioMedium
+from swarm_sim.sensors import GpsModel, ImuModel
+
+PARAMETERS = {
+    'fleet_file': ('', 'Fleet YAML: robots with id, type, beacon, x, y, yaw'),
+    'shape': ('', 'Shape spec whose obstacles populate the world (built-in or file)'),
+    'backend': ('auto', 'Physics: pybullet, pointmass, or auto (pybullet if available)'),
+    'physics_rate_hz': (100.0, 'Physics steps per simulated second'),
+    'real_time_factor': (1.0, 'Target sim/wall speed ratio; 0 runs as fast as possible'),
+    'clock_rate_hz': (100.0, 'Wall-clock rate of /clock updates and stepping batches'),
+    'imu_rate_hz': (10.0, 'IMU samples per simulated second'),
+    'gps_rate_hz': (1.0, 'Beacon GPS fixes per simulated second'),
+    'gps_std': (2.0, 'GPS noise per axis (m), thesis 4.2'),
+    'range_rate_hz': (1.0, 'TOA ranging rate per simulated second'),
+    'truth_rate_hz': (2.0, 'Ground-truth publication rate (sim time)'),
+    'marker_rate_hz': (1.0, 'RViz marker rate (sim time)'),
+    'command_timeout_s': (0.5, 'Force commands older than this are dropped to zero'),
+    'max_force': (50.0, 'Force commands are clamped to this magnitude (N)'),
+    'loss': (0.0, 'Radio packet loss probability (settable at run time)'),
+    'half_size': (50.0, 'Workspace half width (m)'),
+    'terrain': ('rough', 'pybullet terrain: rough or flat'),
+    'seed': (0, 'Seed of the noise generators and the terrain'),
+    'record_dir': ('', 'Folder for the run record (truth.csv, medium.json); empty: none'),
+    'gui': (False, 'pybullet GUI (needs a display)'),
+}
+
+
+class PointMassBackend:
+    """The headless point-mass model behind the Backend interface."""
+
+    name = 'pointmass'
+
+    def __init__(self, fleet, types, **_) -> None:
+        from swarm_agent.dynamics import PointMassSwarm
+        self.model = PointMassSwarm([types[r.type] for r in fleet],
+                                    [[r.x, r.y] for r in fleet])
+
+    def step(self, dt: float, forces: np.ndarray) -> None:
+        self.model.step(dt, forces)
+
+    def positions(self) -> np.ndarray:
+        return self.model.positions
+
+    def velocities(self) -> np.ndarray:
+        return self.model.velocities
+
+    def accelerations(self) -> np.ndarray:
+        return self.model.accelerations()
+
+    def yaws(self) -> np.ndarray:
+        return np.zeros(len(self.model.positions))
+
+    def close(self) -> None:
+        pass
+
+
+def make_backend(name: str, fleet, types, obstacles, half_size, terrain, seed, gui):
+    """The physics backend by name ('auto' prefers pybullet's swarm_sim.world)."""
+    if name in ('pybullet', 'auto'):
+        try:
+            from swarm_sim.world import PybulletBackend
+        except ImportError:
+            if name == 'pybullet':
+                raise
+        else:
+            return PybulletBackend(fleet, types, obstacles=obstacles, half_size=half_size,
+                                   terrain=terrain, seed=seed, gui=gui)
+    return PointMassBackend(fleet, types)
+
+
+class SimNode(Node):
+    """The world; see the module docstring."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__('sim', **kwargs)
+        for name, (default, text) in PARAMETERS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(description=text))
+        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        self.params = p
+        self.fleet = load_fleet(p['fleet_file'])
+        self.ids = [r.id for r in self.fleet]
+        self.index = {r.id: i for i, r in enumerate(self.fleet)}
+        self.n = len(self.fleet)
+        self.is_beacon = np.array([r.is_beacon for r in self.fleet])
+        types = load_robot_types()
+        self.types = types
+        obstacles = list(load_shape(p['shape']).obstacles) if p['shape'] else []
+        self.obstacles = obstacles
+        self.rng = np.random.default_rng(p['seed'])
+        self.backend = make_backend(p['backend'], self.fleet, types, obstacles,
+                                    p['half_size'], p['terrain'], p['seed'], p['gui'])
+        self.medium = RadioMedium(MediumConfig(loss=p['loss']), self.rng, obstacles)
+        self.imu = ImuModel(self.n, self.rng)
+        self.gps = GpsModel(self.rng, std=p['gps_std'])
+        self.alive = np.ones(self.n, dtype=bool)
+        self.forces = np.zeros((self.n, 2))
+        self.force_time = np.full(self.n, -math.inf)
+        self._warned: set[int] = set()
+        self.dt = 1.0 / p['physics_rate_hz']
+        self.step_count = 0
+        self.t = 0.0
+        self._due = {k: 0.0 for k in ('imu', 'gps', 'range', 'truth', 'marker')}
+        self._record = None
+        if p['record_dir']:
+            path = pathlib.Path(p['record_dir'])
+            path.mkdir(parents=True, exist_ok=True)
+            self._record = open(path / 'truth.csv', 'w', encoding='utf-8')  # noqa: SIM115
+            self._record.write('t,id,x,y,vx,vy,alive\n')
+
+        sensor, radio, state = (QoSProfile(**q) for q in (qos.SENSOR, qos.RADIO, qos.STATE))
+        self.clock_pub = self.create_publisher(Clock, '/clock', 10)
+        self.truth_pub = self.create_publisher(SwarmTruth, '/swarm/truth', state)
+        self.marker_pub = self.create_publisher(MarkerArray, '/swarm/markers', state)
+        self.imu_pubs, self.gps_pubs, self.range_pubs, self.rx_pubs = {}, {}, {}, {}
+        for r in self.fleet:
+            ns = f'/agent_{r.id}'
+            self.imu_pubs[r.id] = self.create_publisher(Imu, f'{ns}/imu', sensor)
+            self.range_pubs[r.id] = self.create_publisher(RangeArray, f'{ns}/ranges', sensor)
+            self.rx_pubs[r.id] = self.create_publisher(RadioPacket, f'{ns}/radio/rx', radio)
+            if r.is_beacon:
+                self.gps_pubs[r.id] = self.create_publisher(PoseWithCovarianceStamped,
+                                                            f'{ns}/gps', sensor)
+            self.create_subscription(WrenchStamped, f'{ns}/cmd_force',
+                                     lambda m, i=self.index[r.id]: self._on_force(i, m),
+                                     sensor)
+        self.create_subscription(RadioPacket, '/radio/tx', self._on_tx, radio)
+        self.create_subscription(Int32MultiArray, '/swarm/kill', self._on_kill, 10)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.medium.update_positions(self.ids, self.backend.positions())
+        self._imu_v = self.backend.velocities().copy()
+        self._imu_t = 0.0
+        self._wall0 = time.monotonic()
+        self._sim0 = 0.0
+        self.create_timer(1.0 / p['clock_rate_hz'], self._on_tick)
+        self.get_logger().info(
+            f'{self.n} robots ({int(self.is_beacon.sum())} beacons), '
+            f'{len(obstacles)} obstacles, backend {self.backend.name}, '
+            f'{p["physics_rate_hz"]:.0f} Hz physics, real-time factor '
+            f'{p["real_time_factor"] or "max"}')
+
+    # -- inputs
+    def _on_force(self, i: int, msg: WrenchStamped) -> None:
+        f = np.array([msg.wrench.force.x, msg.wrench.force.y])
+        if not np.all(np.isfinite(f)):
+            if i not in self._warned:
+                self._warned.add(i)
+                self.get_logger().warning(
+                    f'robot {self.ids[i]}: rejected a non-finite force command {f.tolist()}; '
+                    'holding the last valid one')
+            return
+        norm = float(np.hypot(*f))
+        if norm > self.params['max_force']:
+            if i not in self._warned:
+                self._warned.add(i)
+                self.get_logger().warning(
+                    f'robot {self.ids[i]}: force {norm:.1f} N clamped to '
+                    f'{self.params["max_force"]} N')
+            f *= self.params['max_force'] / norm
+        self.forces[i] = f
+        self.force_time[i] = self.t
+
+    def _on_tx(self, msg: RadioPacket) -> None:
+        if msg.source in self.index:
+            self.medium.transmit(self.t, packet_from_msg(msg))
+
+    def _on_kill(self, msg: Int32MultiArray) -> None:
+        for agent in msg.data:
+            i = self.index.get(int(agent))
+            if i is not None and self.alive[i]:
+                self.alive[i] = False
+                self.medium.remove(int(agent))
+                self.get_logger().warning(f'robot {agent} removed (fault injection)')
+
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        for param in params:
+            if param.name == 'loss':
+                if not 0.0 <= float(param.value) <= 1.0:
+                    return SetParametersResult(successful=False,
+                                               reason='loss must be within [0, 1]')
+                self.medium.set_loss(float(param.value))
+                self.get_logger().info(f'packet loss set to {param.value}')
+            elif param.name == 'real_time_factor':
+                self._wall0, self._sim0 = time.monotonic(), self.t
+        return SetParametersResult(successful=True)
+
+    # -- stepping
+    def _on_tick(self) -> None:
+        rtf = float(self.get_parameter('real_time_factor').value)
+        if rtf > 0:
+            target = self._sim0 + (time.monotonic() - self._wall0) * rtf
+            steps = int((target - self.t) / self.dt)
+            steps = max(0, min(steps, 50))
+        else:
+            steps = 10
+        for _ in range(steps):
+            self._physics_step()
+        if steps:
+            self._publish_outputs()
+
+    def _physics_step(self) -> None:
+        stale = self.t - self.force_time > self.params['command_timeout_s']
+        forces = np.where((stale | ~self.alive)[:, None], 0.0, self.forces)
+        self.backend.step(self.dt, forces)
+        self.step_count += 1
+        self.t = self.step_count * self.dt
+        if self.step_count % max(1, int(round(0.05 / self.dt))) == 0:
+            living = np.flatnonzero(self.alive)
+            self.medium.update_positions([self.ids[i] for i in living],
+                                         self.backend.positions()[living])
+
+    def _stamp(self):
+        sec = int(self.t)
+        from builtin_interfaces.msg import Time
+        return Time(sec=sec, nanosec=int(round((self.t - sec) * 1e9)) % 1_000_000_000)
+
+    def _due_now(self, key: str, rate_param: str) -> bool:
+        if self.t + 1e-9 >= self._due[key]:
+            self._due[key] = self.t + 1.0 / self.params[rate_param]
+            return True
+        return False
+
+    def _publish_outputs(self) -> None:
+        stamp = self._stamp()
+        self.clock_pub.publish(Clock(clock=stamp))
+        for receiver, packet in self.medium.deliver(self.t):
+            pub = self.rx_pubs.get(receiver)
+            if pub is not None:
+                pub.publish(packet_to_msg(packet, stamp))
+        pos = self.backend.positions()
+        if self._due_now('imu', 'imu_rate_hz'):
+            # A real IMU reports the mean acceleration over its sample interval (it
+            # integrates internally); sampling one physics step would alias the
+            # control-rate force changes into the agents' velocity estimates.
+            vel = self.backend.velocities()
+            interval = max(self.t - self._imu_t, self.dt)
+            mean_accel = (vel - self._imu_v) / interval
+            self._imu_v, self._imu_t = vel.copy(), self.t
+            accel = self.imu.measure(mean_accel)
+            for i in np.flatnonzero(self.alive):
+                msg = Imu()
+                msg.header.stamp = stamp
+                msg.header.frame_id = 'map'
+                msg.linear_acceleration.x = float(accel[i, 0])
+                msg.linear_acceleration.y = float(accel[i, 1])
+                msg.linear_acceleration_covariance[0] = self.imu.noise_std ** 2
+                msg.linear_acceleration_covariance[4] = self.imu.noise_std ** 2
+                self.imu_pubs[self.ids[i]].publish(msg)
+        if self._due_now('gps', 'gps_rate_hz'):
+            for i in np.flatnonzero(self.alive & self.is_beacon):
+                fix, std = self.gps.measure(pos[i])
+                msg = PoseWithCovarianceStamped()
+                msg.header.stamp = stamp
+                msg.header.frame_id = 'map'
+                msg.pose.pose.position.x, msg.pose.pose.position.y = float(fix[0]), float(fix[1])
+                msg.pose.covariance[0] = msg.pose.covariance[7] = std ** 2
+                self.gps_pubs[self.ids[i]].publish(msg)
+        if self._due_now('range', 'range_rate_hz'):
+            beacons = [self.ids[i] for i in np.flatnonzero(self.alive & self.is_beacon)]
+            for i in np.flatnonzero(self.alive & ~self.is_beacon):
+                msg = RangeArray()
+                msg.header.stamp = stamp
+                msg.receiver = self.ids[i]
+                msg.ranges = [RangeMeasurement(beacon_id=b, range=r, stddev=s)
+                              for b, r, s in self.medium.toa_ranges(self.ids[i], beacons)]
+                self.range_pubs[self.ids[i]].publish(msg)
+        if self._due_now('truth', 'truth_rate_hz'):
+            self._publish_truth(stamp, pos)
+        if self._due_now('marker', 'marker_rate_hz'):
+            self._publish_markers(stamp, pos)
+
+    def _publish_truth(self, stamp, pos) -> None:
+        vel = self.backend.velocities()
+        yaw = self.backend.yaws()
+        msg = SwarmTruth()
+        msg.header.stamp = stamp
+        msg.header.frame_id = 'map'
+        for i, r in enumerate(self.fleet):
+            msg.agents.append(AgentTruth(
+                id=r.id, type=r.type, is_beacon=r.is_beacon, alive=bool(self.alive[i]),
+                position=[float(pos[i, 0]), float(pos[i, 1])],
+                velocity=[float(vel[i, 0]), float(vel[i, 1])], yaw=float(yaw[i])))
+            if self._record is not None:
+                self._record.write(f'{self.t:.3f},{r.id},{pos[i, 0]:.4f},{pos[i, 1]:.4f},'
+                                   f'{vel[i, 0]:.4f},{vel[i, 1]:.4f},{int(self.alive[i])}\n')
+        self.truth_pub.publish(msg)
+
+    def _publish_markers(self, stamp, pos) -> None:
+        colours = {1: (0.9, 0.2, 0.2), 2: (1.0, 0.6, 0.1), 3: (0.6, 0.3, 0.8)}
+        markers = MarkerArray()
+        for i, r in enumerate(self.fleet):
+            m = Marker()
+            m.header.stamp = stamp
+            m.header.frame_id = 'map'
+            m.ns = 'robots'
+            m.id = r.id
+            m.type = Marker.CYLINDER
+            m.action = Marker.ADD if self.alive[i] else Marker.DELETE
+            m.pose.position.x, m.pose.position.y = float(pos[i, 0]), float(pos[i, 1])
+            m.pose.orientation.w = 1.0
+            d = 2.0 * self.types[r.type].coverage_radius
+            m.scale.x = m.scale.y = d
+            m.scale.z = 0.1
+            m.color.r, m.color.g, m.color.b = colours.get(r.type, (0.5, 0.5, 0.5))
+            m.color.a = 0.8
+            markers.markers.append(m)
+        self.marker_pub.publish(markers)
+
+    def close(self) -> None:
+        """Flush the run record and release the physics."""
+        if self._record is not None:
+            self._record.close()
+            out = pathlib.Path(self.params['record_dir']) / 'medium.json'
+            out.write_text(json.dumps(vars(self.medium.stats), indent=2), encoding='utf-8')
+            self._record = None
+        self.backend.close()
+
+
+def main(args=None) -> None:
+    """Run the simulator (``ros2 run swarm_sim sim_node``)."""
+    rclpy.init(args=args)
+    try:
+        node = SimNode()
+    except (FleetError, ShapeError, ValueError) as exc:
+        print(f'sim_node: {exc}', file=sys.stderr)
+        rclpy.try_shutdown()
+        sys.exit(2)
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.close()
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main(sys.argv)
