@@ -7,6 +7,12 @@ Dijkstra run from the agent over the obstacle vertices (scipy.sparse.csgraph), t
 each goal is reached either straight from the agent or from the best vertex that sees
 it. Visibility tests are vectorised shapely predicates against the obstacles shrunk by
 a hair, so paths may slide along an obstacle's edge but never cut through it.
+
+A start inside a grown obstacle (the agent's disc overlaps an obstacle, or its position
+estimate is off by metres) would see nothing and report every goal unreachable. Instead
+the agent first leaves its forbidden space the shortest way, to the nearest boundary
+point of that grown obstacle: costs include that escape distance and ``path`` starts
+with it. A goal inside a grown obstacle, or in a region no free path reaches, costs inf.
 """
 
 from __future__ import annotations
@@ -18,6 +24,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 import shapely
 from shapely.geometry import Polygon
+import shapely.ops
 
 EPS = 1e-6
 
@@ -95,20 +102,39 @@ class VisibilityGraph:
         return dist[:v], pred[:v]
 
     # -- public API
+    def escape(self, point) -> tuple[np.ndarray, float]:
+        """The nearest free point to ``point`` and the distance to it (0 if already free).
+
+        Inside a grown obstacle that is the nearest point of its boundary (exterior or a
+        hole's), which the visibility tests treat as free.
+        """
+        point = np.asarray(point, dtype=float).reshape(2)
+        if self._blocker is None:
+            return point, 0.0
+        p = shapely.Point(point[0], point[1])
+        if not self._blocker.contains(p):
+            return point, 0.0
+        for obstacle in self.obstacles:
+            if obstacle.contains(p):
+                exit_point = shapely.ops.nearest_points(obstacle.boundary, p)[0]
+                out = np.array([exit_point.x, exit_point.y])
+                return out, float(np.hypot(*(out - point)))
+        return point, 0.0
+
     def cost_row(self, start, goals) -> np.ndarray:
         """Shortest path lengths (m) from ``start`` to every goal; inf when unreachable."""
-        start = np.asarray(start, dtype=float).reshape(2)
+        start, escape = self.escape(start)
         goals = np.asarray(goals, dtype=float).reshape(-1, 2)
         direct = np.linalg.norm(goals - start, axis=1)
         if self._blocker is None or len(goals) == 0:
-            return direct
+            return direct + escape
         straight = self._visible(np.repeat(start[None], len(goals), axis=0), goals)
         cost = np.where(straight, direct, np.inf)
         if (~straight).any() and len(self.vertices):
             dist, _ = self._from_start(start)
             via = (dist[None, :] + self._goal_vertex(goals)).min(axis=1)
             cost = np.where(straight, direct, via)
-        return cost
+        return cost + escape
 
     def cost_matrix(self, starts, goals) -> np.ndarray:
         """(A, G) cost rows for several starts."""
@@ -116,9 +142,16 @@ class VisibilityGraph:
         return np.array([self.cost_row(s, goals) for s in starts]).reshape(len(starts), -1)
 
     def path(self, start, goal) -> np.ndarray:
-        """Waypoints (k, 2) from start to goal, both included; straight line if visible."""
-        start = np.asarray(start, dtype=float).reshape(2)
+        """Waypoints (k, 2) from start to goal, both included; straight line if visible.
+
+        A start inside a grown obstacle first goes to ``escape(start)``; an unreachable
+        goal gives the straight line (its cost is inf, so it is never assigned).
+        """
+        origin = np.asarray(start, dtype=float).reshape(2)
+        start, escape = self.escape(origin)
         goal = np.asarray(goal, dtype=float).reshape(2)
+        if escape > 0.0:
+            return np.vstack([origin, self.path(start, goal)])
         if self._blocker is None or self._visible(start, goal)[0] or not len(self.vertices):
             return np.array([start, goal])
         dist, pred = self._from_start(start)
