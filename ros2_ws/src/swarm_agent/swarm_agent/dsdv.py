@@ -9,7 +9,11 @@
   known (3.1.2.3), so it overrides the stale route everywhere.
 - Selection rules: a route with a newer sequence number always wins; with the same
   sequence number the smaller hop count wins (3.1.2.1). Sequence numbers make stale
-  routes lose, so there is no count-to-infinity.
+  routes lose, so there is no count-to-infinity. Damping (DSDV's settling concern):
+  a newer number over a *longer* path from another neighbour is ignored unless the
+  current route is broken or ``stale_generations`` full dumps old, so lost or late
+  frames on the shortest path do not make routes flap. Ignoring an advert is the
+  same as losing it, so loop freedom is kept.
 - Periodic full dumps and triggered incremental updates of changed routes.
 - Multi-hop delivery: routed unicast DATA hop by hop along next hops with a TTL, and
   FLOOD broadcasts deduplicated by (origin, flood id); messages longer than one frame
@@ -29,6 +33,7 @@ from swarm_agent.packet import BROADCAST, Kind, Packet
 from swarm_agent.wire import Advert, INFINITE_HOPS, WireError
 
 LOG = logging.getLogger(__name__)
+SEQUENCE_STEP = 2  # own sequence numbers grow by this at every full dump (they stay even)
 
 
 @dataclass
@@ -42,6 +47,7 @@ class DsdvConfig:
     default_ttl: int = 32
     dedup_memory: int = 4096
     reassembly_timeout_s: float = 5.0
+    stale_generations: int = 6  # full dumps a shorter route may lag before a longer one wins
 
 
 @dataclass
@@ -138,7 +144,7 @@ class DsdvRouter:
                                     wire.encode_heartbeat(self.sequence, self._info), ttl=1))
         if t >= self._next_full:
             self._next_full = t + self.config.full_dump_period_s
-            self.sequence += 2
+            self.sequence += SEQUENCE_STEP
             adverts = [Advert(self.id, 0, self.sequence)] + [
                 Advert(r.destination, r.hop_count, r.sequence_number) for r in self.routes()]
             for frame in wire.encode_adverts(self.sequence, adverts):
@@ -179,6 +185,9 @@ class DsdvRouter:
             return out
         if packet.destination not in (self.id, BROADCAST):
             self._count('not_for_me')
+            return out
+        if packet.ttl <= 0:  # swarm_msgs/RadioPacket: a packet with ttl 0 is dropped
+            self._count('dropped_ttl')
             return out
         try:
             kind = Kind(packet.kind)
@@ -248,6 +257,16 @@ class DsdvRouter:
                     current.hop_count = INFINITE_HOPS
                     current.sequence_number = adv.sequence
                     current.changed = True
+                continue
+            if newer and not (current.next_hop == neighbour or hops <= current.hop_count
+                              or current.hop_count >= INFINITE_HOPS
+                              or adv.sequence >= current.sequence_number
+                              + self.config.stale_generations * SEQUENCE_STEP):
+                # Damping: a newer number that arrived first over a longer path (the
+                # shorter path's frame was lost or is later in its dump cycle) would make
+                # the route flap; the shorter path brings the same number soon. It wins
+                # once the current route is ``stale_generations`` behind.
+                self._count('damped')
                 continue
             if newer or (adv.sequence == current.sequence_number and hops < current.hop_count):
                 changed = current.next_hop != neighbour or current.hop_count != hops
