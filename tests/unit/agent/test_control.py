@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -280,3 +281,29 @@ def test_obstacle_samples_repel_by_eq_3_93():
     gap = np.hypot(1.0, obstacle[:, 1]) - 0.15
     expected = params.k_o * step * np.sum(-1.0 / gap ** 4)
     assert f[0] == pytest.approx(expected, rel=1e-9)
+
+
+# -- scripts/lqr_report.py
+
+def test_lqr_report_writes_gains_and_step_plot(tmp_path, capsys):
+    import lqr_report
+
+    assert lqr_report.main(['--out', str(tmp_path)]) == 0
+    printed = capsys.readouterr().out
+    assert 'Table 4.2' in printed and 'differ' in printed
+    data = json.loads((tmp_path / 'lqr.json').read_text(encoding='utf-8'))
+    assert (tmp_path / 'step.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    assert sorted(data['types']) == ['1', '2', '3']
+    for type_id, entry in data['types'].items():
+        robot = TYPES[int(type_id)]
+        ours, table = entry['ours'], entry['table_4_2']
+        k_v, k_e = closed_form_gains(robot, DESIGN)
+        assert ours['k_v'] == pytest.approx(k_v) and ours['k_e'] == pytest.approx(k_e)
+        assert all(re < 0 for re, _ in ours['poles'] + table['poles'])
+        assert ours['overshoot_percent'] < 2.0 and table['overshoot_percent'] == 0.0
+        assert (table['k_e'], table['k_v']) == lqr_report.TABLE_4_2[int(type_id)]
+        # The weights reported as needed for a Table 4.2 row do reproduce it.
+        fit = table['fit']
+        refit = design_lqr(robot, LqrDesign(t1=1.0 / fit['q1'], u_max=fit['u1max_N']))
+        assert (refit.k_e, refit.k_v) == pytest.approx((table['k_e'], table['k_v']), rel=1e-6)
+    assert lqr_report.main(['--robot-types', str(tmp_path / 'missing.yaml')]) == 2
