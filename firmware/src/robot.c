@@ -1,0 +1,221 @@
+/* robot.c - the board's application layer (see PROTOCOL.md).
+ *
+ * A valid CMD_VEL is mixed into three wheel rates (eqs. 5.1-5.3, mixer.c) and applied
+ * to the stepper channels; STOP zeroes them. Every command is acknowledged. The command
+ * watchdog in robot_tick() zeroes the rates SWP_CMD_TIMEOUT_MS after the last valid
+ * command, so a robot whose link dies stops within 500 ms whatever the main loop does.
+ */
+#include "robot.h"
+
+#include "hal.h"
+#include "mixer.h"
+#include "stepper.h"
+#include "xbee_parser.h"
+
+robot_t robot;
+
+static uint8_t tx_sum;
+
+static void put_escaped(uint8_t byte)
+{
+    if (byte == SWP_XBEE_START || byte == SWP_XBEE_ESCAPE || byte == SWP_XBEE_XON
+            || byte == SWP_XBEE_XOFF) {
+        hal_uart_put(SWP_XBEE_ESCAPE);
+        byte ^= SWP_XBEE_ESCAPE_XOR;
+    }
+    hal_uart_put(byte);
+}
+
+static void put_data(uint8_t byte)
+{
+    tx_sum += byte;
+    put_escaped(byte);
+}
+
+/* Send robot.tx[0..len) to robot.host in a 0x10 transmit request (frame id 0: no status). */
+static void send_payload(uint8_t len)
+{
+    uint8_t i;
+    hal_uart_put(SWP_XBEE_START);
+    put_escaped(0);
+    put_escaped(SWP_TX_HEADER_LEN + len);
+    tx_sum = 0;
+    put_data(SWP_API_TX_REQUEST);
+    put_data(0);
+    for (i = 0; i < 8; i++) {
+        put_data(robot.host[i]);
+    }
+    put_data(SWP_ADDR16_UNKNOWN >> 8);
+    put_data(SWP_ADDR16_UNKNOWN & 0xFF);
+    put_data(0); /* broadcast radius: maximum hops */
+    put_data(0); /* options */
+    for (i = 0; i < len; i++) {
+        put_data(robot.tx[i]);
+    }
+    put_escaped(SWP_XBEE_CHECKSUM_OK - tx_sum);
+}
+
+static void send_ack(uint8_t seq, uint8_t type, uint8_t result)
+{
+    robot.tx[0] = SWP_MSG_ACK;
+    robot.tx[1] = seq;
+    robot.tx[2] = type;
+    robot.tx[3] = result;
+    send_payload(SWP_LEN_ACK);
+}
+
+static void set_fault(uint8_t flags)
+{
+    HAL_CRITICAL_BEGIN();
+    robot.faults |= flags;
+    HAL_CRITICAL_END();
+}
+
+/* Apply mix_rate[] (or zero) and restart the command watchdog. */
+static void apply(uint8_t run)
+{
+    uint8_t i;
+    HAL_CRITICAL_BEGIN();
+    for (i = 0; i < 3; i++) {
+        st_rate[i] = run ? mix_rate[i] : 0;
+    }
+    robot.running = run && (mix_rate[0] != 0 || mix_rate[1] != 0 || mix_rate[2] != 0);
+    robot.cmd_age_ms = 0;
+    robot.faults &= (uint8_t)~SWP_FAULT_WATCHDOG;
+    HAL_CRITICAL_END();
+}
+
+static void handle_frame(void)
+{
+    uint8_t *msg = &xp.buf[SWP_RX_HEADER_LEN];
+    uint8_t len;
+    uint8_t i;
+    uint16_t speed;
+    uint16_t alpha;
+    if (xp.buf[0] != SWP_API_RX_PACKET || xp.length < SWP_RX_HEADER_LEN + 2) {
+        return; /* modem status, transmit status, or no message: nothing to do */
+    }
+    len = xp.length - SWP_RX_HEADER_LEN;
+    for (i = 0; i < 8; i++) {
+        robot.host[i] = xp.buf[1 + i]; /* answer whoever commands us */
+    }
+    if (msg[0] == SWP_MSG_CMD_VEL) {
+        if (len != SWP_LEN_CMD_VEL) {
+            set_fault(SWP_FAULT_BAD_MSG);
+            send_ack(msg[1], msg[0], SWP_ACK_BAD_LENGTH);
+            return;
+        }
+        speed = ((uint16_t)msg[2] << 8) | msg[3];
+        alpha = ((uint16_t)msg[4] << 8) | msg[5];
+        if (alpha >= SWP_DIRECTION_FULL_TURN) {
+            set_fault(SWP_FAULT_BAD_MSG);
+            send_ack(msg[1], msg[0], SWP_ACK_BAD_VALUE);
+            return;
+        }
+        if (mixer_mix(speed, alpha)) {
+            set_fault(SWP_FAULT_RATE_LIMIT);
+        }
+        apply(1);
+    } else if (msg[0] == SWP_MSG_STOP) {
+        if (len != SWP_LEN_STOP) {
+            set_fault(SWP_FAULT_BAD_MSG);
+            send_ack(msg[1], msg[0], SWP_ACK_BAD_LENGTH);
+            return;
+        }
+        apply(0);
+    } else {
+        set_fault(SWP_FAULT_BAD_MSG);
+        send_ack(msg[1], msg[0], SWP_ACK_UNKNOWN_TYPE);
+        return;
+    }
+    robot.last_cmd_seq = msg[1];
+    send_ack(msg[1], msg[0], SWP_ACK_OK);
+}
+
+void robot_init(void)
+{
+    uint8_t i;
+    static const uint8_t HOST_DEFAULT[8] = SWP_HOST_ADDR64_DEFAULT;
+    xp_reset();
+    stepper_init();
+    robot.cmd_age_ms = 0xFFFF;
+    robot.heartbeat_ms = 0;
+    robot.heartbeat_due = 0;
+    robot.faults = SWP_FAULT_RESET;
+    robot.status_seq = 0;
+    robot.last_cmd_seq = 0;
+    robot.running = 0;
+    for (i = 0; i < 8; i++) {
+        robot.host[i] = HOST_DEFAULT[i];
+    }
+    for (i = 0; i < 3; i++) {
+        mix_rate[i] = 0;
+        hal_coils(i, 0);
+    }
+}
+
+void robot_rx_byte(uint8_t byte)
+{
+    uint8_t bad = (uint8_t)(xp.bad_checksums + xp.truncated + xp.oversize);
+    if (xp_feed(byte)) {
+        handle_frame();
+    } else if ((uint8_t)(xp.bad_checksums + xp.truncated + xp.oversize) != bad) {
+        set_fault(SWP_FAULT_BAD_FRAME);
+    }
+}
+
+void robot_uart_error(void)
+{
+    robot.faults |= SWP_FAULT_UART;
+}
+
+void robot_poll(void)
+{
+    uint8_t i;
+    uint16_t age;
+    uint8_t faults;
+    if (!robot.heartbeat_due) {
+        return;
+    }
+    HAL_CRITICAL_BEGIN();
+    robot.heartbeat_due = 0;
+    age = robot.cmd_age_ms;
+    faults = robot.faults;
+    robot.faults &= SWP_FAULT_STICKY;
+    for (i = 0; i < 3; i++) {
+        robot.tx[5 + 2 * i] = (uint8_t)((uint16_t)st_rate[i] >> 8);
+        robot.tx[6 + 2 * i] = (uint8_t)st_rate[i];
+    }
+    HAL_CRITICAL_END();
+    robot.tx[0] = SWP_MSG_STATUS;
+    robot.tx[1] = robot.status_seq++;
+    robot.tx[2] = robot.last_cmd_seq;
+    robot.tx[3] = (uint8_t)(age >> 8);
+    robot.tx[4] = (uint8_t)age;
+    robot.tx[11] = faults;
+    robot.tx[12] = (uint8_t)(xp.bad_checksums + xp.truncated + xp.oversize);
+    send_payload(SWP_LEN_STATUS);
+}
+
+void robot_tick(void)
+{
+    uint8_t i;
+    if (robot.cmd_age_ms != 0xFFFF) {
+        robot.cmd_age_ms++;
+    }
+    if (robot.running && robot.cmd_age_ms >= SWP_CMD_TIMEOUT_MS) {
+        for (i = 0; i < 3; i++) {
+            st_rate[i] = 0;
+        }
+        robot.running = 0;
+        robot.faults |= SWP_FAULT_WATCHDOG;
+    }
+    if (++robot.heartbeat_ms >= SWP_HEARTBEAT_MS) {
+        robot.heartbeat_ms = 0;
+        robot.heartbeat_due = 1;
+    }
+    stepper_tick();
+    for (i = 0; i < 3; i++) {
+        hal_coils(i, stepper_pattern(i));
+    }
+}

@@ -1,0 +1,55 @@
+/* stepper.c - step timing by phase accumulation: a channel with rate r half-steps/s
+ * steps exactly r times per SWP_TICK_HZ ticks, evenly spread (Bresenham / DDS). */
+#include "stepper.h"
+
+/* Half-step sequence of a unipolar stepper on a ULN2003 (IN1..IN4 = bits 0..3). */
+static const uint8_t HALF_STEP[8] = { 0x01, 0x03, 0x02, 0x06, 0x04, 0x0C, 0x08, 0x09 };
+
+int16_t st_rate[3];
+uint16_t st_acc[3];
+uint8_t st_phase[3];
+int32_t st_position[3];
+
+void stepper_init(void)
+{
+    uint8_t i;
+    for (i = 0; i < 3; i++) {
+        st_rate[i] = 0;
+        st_acc[i] = 0;
+        st_phase[i] = 0;
+        st_position[i] = 0;
+    }
+}
+
+void stepper_tick(void)
+{
+    uint8_t i;
+    int16_t rate;
+    uint16_t magnitude;
+    for (i = 0; i < 3; i++) {
+        rate = st_rate[i];
+        if (rate == 0) {
+            continue;
+        }
+        magnitude = rate < 0 ? (uint16_t)(-rate) : (uint16_t)rate;
+        st_acc[i] += magnitude;
+        if (st_acc[i] >= SWP_TICK_HZ) {
+            st_acc[i] -= SWP_TICK_HZ;
+            if (rate > 0) {
+                st_phase[i] = (st_phase[i] + 1) & 7;
+                st_position[i]++;
+            } else {
+                st_phase[i] = (st_phase[i] - 1) & 7;
+                st_position[i]--;
+            }
+        }
+    }
+}
+
+uint8_t stepper_pattern(uint8_t ch)
+{
+    if (st_rate[ch] == 0) {
+        return 0; /* release the coils: no holding current while stopped */
+    }
+    return HALF_STEP[st_phase[ch]];
+}

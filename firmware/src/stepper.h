@@ -1,0 +1,20 @@
+/* stepper.h - three half-stepping channels timed from wheel rates (hardware independent). */
+#ifndef STEPPER_H
+#define STEPPER_H
+
+#include <stdint.h>
+
+#include "swarm_protocol.h"
+
+extern int16_t st_rate[3];     /* half-steps per second, signed; written under HAL_CRITICAL */
+extern uint16_t st_acc[3];     /* phase accumulators, 0..SWP_TICK_HZ-1                     */
+extern uint8_t st_phase[3];    /* index into the half-step sequence, 0..7                  */
+extern int32_t st_position[3]; /* half-steps taken, signed (for tests and status)          */
+
+void stepper_init(void);
+/* One timer tick (1/SWP_TICK_HZ s): advance each channel whose accumulator overflows. */
+void stepper_tick(void);
+/* Coil pattern of channel ch (bits 0..3 = IN1..IN4 of its ULN2003); 0 when stopped. */
+uint8_t stepper_pattern(uint8_t ch);
+
+#endif
