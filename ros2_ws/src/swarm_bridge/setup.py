@@ -24,6 +24,8 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            'bridge_node = swarm_bridge.bridge_node:main',
+            'robot_emulator = swarm_bridge.emulator:main',
         ],
     },
 )
