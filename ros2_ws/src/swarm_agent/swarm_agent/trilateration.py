@@ -94,9 +94,12 @@ def trilaterate(beacons, ranges, initial=None, range_std: float = 0.3) -> Trilat
     jac = diff / dist[:, None]
     info = jac.T @ jac
     if np.linalg.matrix_rank(info) < 2:
-        cov = np.eye(2) * 1e6
-    else:
-        cov = range_std ** 2 * np.linalg.inv(info)
+        # All beacons in one direction from the estimate (e.g. identical beacons): the
+        # ranges leave a direction unconstrained, whatever the prior was.
+        raise DegenerateGeometryError(
+            'the beacons all lie in one direction from the estimate (coincident beacons?): '
+            'the position is undetermined across it; wait for better-spread beacons')
+    cov = range_std ** 2 * np.linalg.inv(info)
     residual = float(np.sqrt(np.mean((dist - ranges) ** 2)))
     return TrilaterationResult(p, cov, method, residual)
 

@@ -1,0 +1,272 @@
+"""Local positioning system (thesis 3.1.1-3.1.4): trilateration, Kalman filter, modes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarm_agent.kalman import KalmanFilter
+from swarm_agent.localization import LocalizationConfig, Localizer, MG, Mode
+from swarm_agent.trilateration import (
+    crlb,
+    DegenerateGeometryError,
+    gauss_newton,
+    geometry_rank,
+    trilaterate,
+)
+
+TRIANGLE = np.array([[0.0, 0.0], [20.0, 0.0], [5.0, 18.0]])
+PENTAGON = 12.0 * np.array([[np.cos(a), np.sin(a)]
+                            for a in np.linspace(0, 2 * np.pi, 5, endpoint=False)])
+
+
+def _ranges(beacons: np.ndarray, p) -> np.ndarray:
+    return np.linalg.norm(beacons - np.asarray(p, float), axis=1)
+
+
+# --------------------------------------------------------------------- trilateration
+@pytest.mark.parametrize('p', [(7.0, 6.0), (-3.0, 25.0), (0.0, 0.0), (19.0, -4.0)])
+def test_three_beacons_noiseless_exact(p):
+    """Eqs. 3.8-3.12: the linear system of 3 beacons has the true position as solution."""
+    fix = trilaterate(TRIANGLE, _ranges(TRIANGLE, p))
+    np.testing.assert_allclose(fix.position, p, atol=1e-9)
+    assert fix.method == 'linear+gauss-newton'
+    assert fix.residual < 1e-9
+
+
+def test_more_beacons_least_squares_noiseless_exact():
+    """Eq. 3.17: with n > 3 beacons the least-squares solution is exact without noise."""
+    beacons = np.vstack([PENTAGON, [[30.0, 2.0], [-4.0, -20.0]]])
+    fix = trilaterate(beacons, _ranges(beacons, (3.5, -2.0)))
+    np.testing.assert_allclose(fix.position, (3.5, -2.0), atol=1e-9)
+    assert fix.method == 'least-squares+gauss-newton'
+
+
+def _linear_only(beacons: np.ndarray, ranges: np.ndarray) -> np.ndarray:
+    """Eqs. 3.8-3.17 alone (reference for the refinement test)."""
+    a = 2.0 * (beacons[-1] - beacons[:-1])
+    b = (ranges[:-1] ** 2 - ranges[-1] ** 2 - np.sum(beacons[:-1] ** 2, axis=1)
+         + np.sum(beacons[-1] ** 2))
+    return np.linalg.lstsq(a, b, rcond=None)[0]
+
+
+def test_gauss_newton_refines_the_linear_estimate():
+    """Eqs. 3.20-3.27 minimise the range residuals, which the linearised system does not.
+
+    Subtracting squared ranges weights the beacons unequally, so with noise the linear
+    solution is not the least-squares fit of the ranges; the refined one is, and it is
+    closer to the truth on average.
+    """
+    rng = np.random.default_rng(3)
+    truth = np.array([2.0, 3.0])
+    beacons = np.vstack([PENTAGON, [[25.0, 25.0]]])
+    lin_err, gn_err = [], []
+    for _ in range(500):
+        r = _ranges(beacons, truth) + rng.normal(0.0, 0.5, len(beacons))
+        lin = _linear_only(beacons, r)
+        fix = trilaterate(beacons, r, range_std=0.5)
+        cost = lambda p, r=r: np.sum((_ranges(beacons, p) - r) ** 2)  # noqa: E731
+        assert cost(fix.position) <= cost(lin) + 1e-12
+        lin_err.append(np.sum((lin - truth) ** 2))
+        gn_err.append(np.sum((fix.position - truth) ** 2))
+    assert np.mean(gn_err) < np.mean(lin_err)
+
+
+def test_gauss_newton_converges_from_a_far_start():
+    p = gauss_newton(PENTAGON, _ranges(PENTAGON, (4.0, -1.0)), np.array([-8.0, 9.0]),
+                     iterations=30)
+    np.testing.assert_allclose(p, (4.0, -1.0), atol=1e-6)
+
+
+@pytest.mark.parametrize('beacons', [
+    [[0.0, 0.0], [10.0, 0.0], [20.0, 0.0], [35.0, 0.0]],      # collinear
+    [[0.0, 0.0], [5.0, 5.0], [10.0, 10.0]],                    # collinear, diagonal
+    [[3.0, 4.0], [3.0, 4.0], [3.0, 4.0]],                      # identical
+    [[0.0, 0.0], [10.0, 0.0]],                                 # too few
+])
+def test_degenerate_geometry_raises(beacons):
+    """Collinear beacons leave the mirror image ambiguous; identical ones fix nothing."""
+    beacons = np.asarray(beacons)
+    with pytest.raises(DegenerateGeometryError):
+        trilaterate(beacons, _ranges(beacons, (4.0, 7.0)))
+
+
+def test_identical_beacons_raise_even_with_a_prior():
+    """A prior settles a mirror ambiguity, not a direction no range constrains."""
+    beacons = np.array([[3.0, 4.0]] * 3)
+    with pytest.raises(DegenerateGeometryError, match='one direction'):
+        trilaterate(beacons, _ranges(beacons, (4.0, 7.0)), initial=(0.0, 0.0))
+
+
+def test_collinear_beacons_with_a_prior_pick_the_near_side():
+    """With a propagated estimate Gauss-Newton resolves the mirror ambiguity."""
+    beacons = np.array([[0.0, 0.0], [10.0, 0.0], [20.0, 0.0]])
+    assert geometry_rank(beacons) == 1 and geometry_rank(TRIANGLE) == 2
+    fix = trilaterate(beacons, _ranges(beacons, (4.0, 7.0)), initial=(3.0, 5.0))
+    np.testing.assert_allclose(fix.position, (4.0, 7.0), atol=1e-6)
+    assert fix.method == 'gauss-newton (rank-deficient)'
+
+
+@pytest.mark.parametrize(('ranges', 'match'), [
+    ([1.0, np.nan, 3.0], 'finite'),
+    ([1.0, np.inf, 3.0], 'finite'),
+    ([1.0, -2.0, 3.0], 'non-negative'),
+    ([1.0, 2.0], r'\(n,2\)'),
+])
+def test_bad_ranges_rejected(ranges, match):
+    with pytest.raises(ValueError, match=match):
+        trilaterate(TRIANGLE, ranges)
+
+
+def test_nan_beacon_position_rejected():
+    beacons = TRIANGLE.copy()
+    beacons[1, 0] = np.nan
+    with pytest.raises(ValueError, match='finite'):
+        trilaterate(beacons, [1.0, 2.0, 3.0])
+
+
+def test_monte_carlo_error_reaches_the_crlb():
+    """Gauss-Newton is the ML estimate: its RMS error meets the Cramer-Rao bound.
+
+    sigma = 0.3 m, five beacons 12 m around the agent; ratio RMS / sqrt(trace CRLB).
+    """
+    rng = np.random.default_rng(11)
+    truth = np.array([1.0, -2.0])
+    sigma = 0.3
+    errors = np.array([trilaterate(PENTAGON, _ranges(PENTAGON, truth)
+                                   + rng.normal(0.0, sigma, 5), range_std=sigma).position
+                       - truth for _ in range(2000)])
+    bound = crlb(PENTAGON, truth, sigma)
+    ratio = float(np.sqrt(np.mean(np.sum(errors ** 2, axis=1)) / np.trace(bound)))
+    print(f'\nRMS error / sqrt(CRLB) = {ratio:.3f} (n=2000, sigma={sigma} m, 5 beacons)')
+    assert 0.8 <= ratio <= 1.5
+    assert np.linalg.norm(errors.mean(axis=0)) < 0.05  # unbiased to within noise
+    # the covariance the fix reports is the same Fisher information, at the estimate
+    fix = trilaterate(PENTAGON, _ranges(PENTAGON, truth), range_std=sigma)
+    np.testing.assert_allclose(fix.covariance, bound, rtol=1e-6)
+
+
+def test_crlb_of_a_ring_and_of_beacons_on_one_side():
+    """A ring of n beacons has Fisher information n / (2 sigma^2) I: trace CRLB = 4 sigma^2 / n.
+
+    Beacons all on one side constrain the position across their direction poorly.
+    """
+    assert np.trace(crlb(PENTAGON, (0.0, 0.0), 0.3)) == pytest.approx(4 * 0.09 / 5)
+    one_side = np.array([[10.0, -3.0], [10.0, 0.0], [10.0, 3.0], [11.0, 1.0], [11.0, -1.0]])
+    assert np.trace(crlb(one_side, (0.0, 0.0), 0.3)) > 5 * 4 * 0.09 / 5
+
+
+# --------------------------------------------------------------------- Kalman filter
+def test_covariance_decreases_on_update_and_grows_on_predict():
+    """Eq. 3.44 (Joseph form): P+ <= P- in the Loewner order; eq. 3.33 adds Q."""
+    kf = KalmanFilter((0.0, 0.0), position_std=3.0, velocity_std=0.5)
+    p0 = kf.P.copy()
+    kf.predict(0.5, (0.0, 0.0))
+    # position variance: P_xx + 2 dt P_xv + dt^2 P_vv + Q_xx with P_xv = 0 at the start
+    q = (0.01 ** 2 + 0.001 ** 2) * 0.25 * 0.5 ** 4
+    assert kf.P[0, 0] == pytest.approx(p0[0, 0] + 0.25 * p0[2, 2] + q)
+    assert np.trace(kf.P) > np.trace(p0)
+    before = kf.P.copy()
+    kf.update_position((1.0, 1.0), np.eye(2) * 4.0)
+    assert np.all(np.linalg.eigvalsh(before - kf.P) >= -1e-12)
+    assert np.trace(kf.P) < np.trace(before)
+    # scalar check of the position variance: 1/P+ = 1/P- + 1/R
+    expected = 1.0 / (1.0 / before[0, 0] + 1.0 / 4.0)
+    assert kf.P[0, 0] <= expected + 1e-9
+    np.testing.assert_allclose(kf.P, kf.P.T)
+
+
+def test_prediction_is_exact_for_constant_acceleration():
+    """Eq. 3.30 integrates a constant input exactly: x = x0 + v0 t + a t^2 / 2."""
+    kf = KalmanFilter((1.0, -2.0), velocity=(0.3, 0.1))
+    a = np.array([0.05, -0.02])
+    for _ in range(40):
+        kf.predict(0.25, a)
+    t = 10.0
+    np.testing.assert_allclose(kf.x[:2], np.array([1.0, -2.0]) + np.array([0.3, 0.1]) * t
+                               + 0.5 * a * t * t, atol=1e-12)
+    np.testing.assert_allclose(kf.x[2:], np.array([0.3, 0.1]) + a * t, atol=1e-12)
+
+
+def test_tracks_constant_acceleration_with_noisy_imu_and_fixes():
+    """Thesis noise: IMU 0.01 m/s^2 white + bias at 10 Hz, fixes of 2 m every 3 s.
+
+    The filter starts 5 m off; after a minute the error stays within its own 3-sigma
+    and the normalised estimation error squared averages about 2 (the state's position
+    dimension), i.e. the filter is consistent.
+    """
+    rng = np.random.default_rng(5)
+    a_true = np.array([0.02, -0.01])
+    bias = np.array([0.5, -0.5]) * 0.1 * MG
+    nees, errs = [], []
+    for trial in range(25):
+        x0 = rng.uniform(-5, 5, 2)
+        kf = KalmanFilter(x0 + rng.normal(0, 2.0, 2), position_std=2.0, velocity_std=0.1,
+                          accel_noise_std=0.01, accel_bias_std=0.1 * MG)
+        dt = 0.1
+        for k in range(1, 601):  # 60 s
+            t = k * dt
+            kf.predict(dt, a_true + bias + rng.normal(0, 0.01, 2))
+            if k % 30 == 0:
+                truth = x0 + 0.5 * a_true * t * t
+                kf.update_position(truth + rng.normal(0, 2.0, 2), np.eye(2) * 4.0)
+        truth = x0 + 0.5 * a_true * 60.0 ** 2
+        e = kf.x[:2] - truth
+        errs.append(np.linalg.norm(e))
+        nees.append(float(e @ np.linalg.solve(kf.P[:2, :2], e)))
+        assert np.linalg.norm(kf.x[2:] - a_true * 60.0) < 0.3, trial
+    assert 1.2 < np.mean(nees) < 3.0, np.mean(nees)
+    # 36 m travelled; the estimate is much better than a single 2 m fix
+    assert np.sqrt(np.mean(np.square(errs))) < 2.0
+
+
+# --------------------------------------------------------------------- modes (3.1.3)
+def _beacons(p, n: int, std: float = 0.3):
+    ring = PENTAGON[:n] if n <= 5 else None
+    return [(b, float(np.hypot(*(b - np.asarray(p)))), std) for b in ring]
+
+
+def test_modes_lost_return_home_and_back():
+    """Thesis 3.1.3: LOST below three beacon neighbours, RETURN_HOME at the third miss,
+    NORMAL again as soon as a trilateration succeeds."""
+    loc = Localizer(LocalizationConfig(), (0.0, 0.0), home=(5.0, 5.0))
+    p = (1.0, 1.0)
+    assert loc.localize(3.0, _beacons(p, 3)) == Mode.NORMAL
+    assert loc.localize(6.0, _beacons(p, 2)) == Mode.LOST
+    assert loc.localize(9.0, []) == Mode.LOST
+    assert loc.missed_localizations == 2
+    assert loc.localize(12.0, _beacons(p, 2)) == Mode.RETURN_HOME
+    assert loc.localize(15.0, _beacons(p, 1)) == Mode.RETURN_HOME
+    np.testing.assert_allclose(loc.home, (5.0, 5.0))
+    assert loc.localize(18.0, _beacons(p, 4)) == Mode.NORMAL
+    assert loc.missed_localizations == 0
+    assert loc.stats == {'localizations': 2, 'misses': 4, 'rejected': 0}
+    np.testing.assert_allclose(loc.position, p, atol=0.2)
+
+
+def test_bad_measurements_count_as_misses_never_raise():
+    loc = Localizer(LocalizationConfig(), (0.0, 0.0))
+    nan = [(PENTAGON[0], np.nan, 0.3), (PENTAGON[1], 5.0, 0.0)] + _beacons((0, 0), 2)
+    assert loc.localize(3.0, nan) == Mode.LOST       # only two usable
+    line = [(np.array([x, 0.0]), 3.0, 0.3) for x in (0.0, 0.0, 0.0)]
+    assert loc.localize(6.0, line) == Mode.LOST       # identical beacons
+    far = [(b, 100.0, 0.3) for b in PENTAGON]         # inconsistent ranges
+    assert loc.localize(9.0, far) == Mode.RETURN_HOME
+    assert loc.stats['rejected'] == 2 and loc.stats['misses'] == 3
+
+
+def test_gps_fix_restores_normal_mode():
+    loc = Localizer(LocalizationConfig(), (0.0, 0.0))
+    for t in (3.0, 6.0, 9.0):
+        loc.localize(t, [])
+    assert loc.mode == Mode.RETURN_HOME
+    loc.gps_update(10.0, (1.0, 2.0), 2.0)
+    assert loc.mode == Mode.NORMAL and loc.missed_localizations == 0
+
+
+def test_predict_integrates_the_imu_between_ticks():
+    loc = Localizer(LocalizationConfig(), (0.0, 0.0), initial_velocity=(0.5, 0.0))
+    for k in range(11):
+        loc.predict(0.1 * k, (0.0, 0.2))
+    np.testing.assert_allclose(loc.position, (0.5, 0.5 * 0.2 * 1.0 ** 2), atol=1e-12)
+    np.testing.assert_allclose(loc.velocity, (0.5, 0.2), atol=1e-12)
