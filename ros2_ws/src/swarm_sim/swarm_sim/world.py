@@ -69,7 +69,13 @@ import shapely
 from shapely.geometry import Point, Polygon
 
 from swarm_mission.robot_types import GRAVITY, robot_type, RobotType, RobotTypeError
-from swarm_sim.terrain import DEFAULT_FEATURE, DEFAULT_ROUGHNESS, HeightMap, rough_terrain
+from swarm_sim.terrain import (
+    DEFAULT_CELL,
+    DEFAULT_FEATURE,
+    DEFAULT_ROUGHNESS,
+    HeightMap,
+    rough_terrain,
+)
 
 DEFAULT_PHYSICS_HZ = 100.0
 SPHERE_FRACTION = 0.2          # contact sphere radius / coverage radius
@@ -111,7 +117,7 @@ class PybulletBackend:
                  terrain: str = 'rough', seed: int = 0, gui: bool = False,
                  physics_hz: float = DEFAULT_PHYSICS_HZ,
                  roughness: float = DEFAULT_ROUGHNESS, feature: float = DEFAULT_FEATURE,
-                 max_force: float = 50.0, wall_height: float = 1.0,
+                 cell: float = DEFAULT_CELL, max_force: float = 50.0, wall_height: float = 1.0,
                  obstacle_height: float = 1.0, angular_damping: float = 0.99,
                  solver_iterations: int = 10, visuals: bool | None = None) -> None:
         self.fleet = list(fleet)
@@ -127,7 +133,7 @@ class PybulletBackend:
         self.heightmap: HeightMap | None = None
         if self.terrain_kind == 'rough':
             self.heightmap = rough_terrain(self.half_size, seed, roughness=roughness,
-                                           feature=feature)
+                                           feature=feature, cell=cell)
         self.time = 0.0
         self.steps = 0
         self.rejected_forces = 0
@@ -235,7 +241,8 @@ class PybulletBackend:
         cid = self._cid
         if self.heightmap is None:
             shape = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=cid)
-            self._ground = pb.createMultiBody(0, shape, physicsClientId=cid)
+            self._ground = pb.createMultiBody(0, shape, useMaximalCoordinates=True,
+                                              physicsClientId=cid)
             z_lo = z_hi = 0.0
         else:
             hm = self.heightmap
@@ -248,7 +255,7 @@ class PybulletBackend:
                 numHeightfieldColumns=n_y, physicsClientId=cid)
             z_lo, z_hi = float(hm.z.min()), float(hm.z.max())
             self._ground = pb.createMultiBody(0, shape, basePosition=[0, 0, 0.5 * (z_lo + z_hi)],
-                                              physicsClientId=cid)
+                                              useMaximalCoordinates=True, physicsClientId=cid)
             if self._visuals:
                 pb.changeVisualShape(self._ground, -1, rgbaColor=[0.55, 0.5, 0.4, 1],
                                      physicsClientId=cid)
@@ -264,7 +271,8 @@ class PybulletBackend:
         if self._visuals:
             visual = pb.createVisualShape(pb.GEOM_BOX, halfExtents=half_extents,
                                           rgbaColor=[0.6, 0.6, 0.6, 1], physicsClientId=cid)
-        body = pb.createMultiBody(0, shape, visual, basePosition=centre, physicsClientId=cid)
+        body = pb.createMultiBody(0, shape, visual, basePosition=centre,
+                                  useMaximalCoordinates=True, physicsClientId=cid)
         pb.changeDynamics(body, -1, lateralFriction=1.0, restitution=0.0, physicsClientId=cid)
         return body
 
@@ -304,7 +312,7 @@ class PybulletBackend:
                                               rgbaColor=[0.3, 0.6, 0.3, 1], physicsClientId=cid)
             body = pb.createMultiBody(0, shape, visual,
                                       basePosition=[centre[0], centre[1], 0.0],
-                                      physicsClientId=cid)
+                                      useMaximalCoordinates=True, physicsClientId=cid)
             pb.changeDynamics(body, -1, lateralFriction=1.0, restitution=0.0,
                               physicsClientId=cid)
             bodies.append(body)
@@ -373,6 +381,9 @@ class PybulletBackend:
         self._acc = np.zeros((self.n, 2))
         self._t_read = 0.0
         self._stale = False
+        # Per robot (x, y, z, vx, vy, vz) at the last read, None once removed.
+        self._com_state: list[tuple | None] = [
+            (float(x), float(y), float(z), 0.0, 0.0, 0.0) for x, y, z in self._pos]
 
     # -- the Backend interface
     def step(self, dt: float, forces) -> None:
@@ -380,36 +391,40 @@ class PybulletBackend:
         dt = float(dt)
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f'step dt must be a positive number of seconds, got {dt!r}')
-        f = np.array(forces, dtype=float)
+        f = np.asarray(forces, dtype=float)
         if f.shape != (self.n, 2):
             raise ValueError(f'forces must have shape ({self.n}, 2), got {f.shape}')
-        bad = ~np.isfinite(f).all(axis=1)
-        if bad.any():
-            self.rejected_forces += int(bad.sum())
-            f[bad] = 0.0
-        norm = np.hypot(f[:, 0], f[:, 1])
-        over = norm > self.max_force
-        if over.any():
-            self.clipped_forces += int(over.sum())
-            f[over] *= (self.max_force / norm[over])[:, None]
         substeps = max(1, math.ceil(dt * self.physics_hz - 1e-9))
         h = dt / substeps
         cid = self._cid
         if h != self._h:
             pb.setPhysicsEngineParameter(fixedTimeStep=h, physicsClientId=cid)
             self._h = h
-        push = np.flatnonzero(self.alive & (norm > 0.0))
-        bodies = [self._bodies[i] for i in push]
-        f3 = np.zeros((len(push), 3))
-        f3[:, :2] = f[push]
-        f3_list = f3.tolist()
+        # Plain Python over the robots: for tens of robots it beats a chain of small numpy
+        # calls, and the applyExternalForce calls need the Python loop anyway.
+        limit, limit_sq, isfinite = self.max_force, self.max_force ** 2, math.isfinite
+        pushes = []
+        for body, (fx, fy), state in zip(self._bodies, f.tolist(), self._com_state):
+            if state is None:                      # removed
+                continue
+            if not (isfinite(fx) and isfinite(fy)):
+                self.rejected_forces += 1
+                continue
+            sq = fx * fx + fy * fy
+            if sq == 0.0:
+                continue
+            if sq > limit_sq:
+                self.clipped_forces += 1
+                scale = limit / math.sqrt(sq)
+                fx, fy = fx * scale, fy * scale
+            pushes.append((body, (fx, fy, 0.0), state))
         apply, world, stepsim = pb.applyExternalForce, pb.WORLD_FRAME, pb.stepSimulation
         for _ in range(substeps):
-            if bodies:
-                # Centre of mass extrapolated from the last read (module docstring).
-                com = (self._pos[push] + self._vel[push] * (self.time - self._t_read)).tolist()
-                for body, force, point in zip(bodies, f3_list, com):
-                    apply(body, -1, force, point, world, physicsClientId=cid)
+            # Centre of mass extrapolated from the last read (module docstring).
+            e = self.time - self._t_read
+            for body, force, (px, py, pz, vx, vy, vz) in pushes:
+                apply(body, -1, force, (px + vx * e, py + vy * e, pz + vz * e), world,
+                      physicsClientId=cid)
             stepsim(physicsClientId=cid)
             self.steps += 1
             self.time += h
@@ -421,20 +436,31 @@ class PybulletBackend:
             return
         self._stale = False
         cid = self._cid
-        living = np.flatnonzero(self.alive)
-        if len(living) == 0:
-            return
         get_pose, get_vel = pb.getBasePositionAndOrientation, pb.getBaseVelocity
-        bodies = [self._bodies[i] for i in living]
-        poses = [get_pose(b, physicsClientId=cid) for b in bodies]
-        vels = [get_vel(b, physicsClientId=cid)[0] for b in bodies]
-        vel = np.array(vels)
+        rows = []
+        living = []
+        com_state = self._com_state
+        for i, body in enumerate(self._bodies):
+            if com_state[i] is None:
+                continue
+            p, q = get_pose(body, physicsClientId=cid)
+            v = get_vel(body, physicsClientId=cid)[0]
+            com_state[i] = p + v
+            rows.append(p + q + v)
+            living.append(i)
+        if not rows:
+            return
+        arr = np.array(rows)
         elapsed = self.time - self._t_read
-        if elapsed > 0:
-            self._acc[living] = (vel[:, :2] - self._vel[living, :2]) / elapsed
-        self._pos[living] = [p for p, _ in poses]
-        self._quat[living] = [q for _, q in poses]
-        self._vel[living] = vel
+        if len(living) == self.n:
+            if elapsed > 0:
+                self._acc = (arr[:, 7:9] - self._vel[:, :2]) / elapsed
+            self._pos, self._quat, self._vel = arr[:, 0:3], arr[:, 3:7], arr[:, 7:10]
+        else:
+            if elapsed > 0:
+                self._acc[living] = (arr[:, 7:9] - self._vel[living, :2]) / elapsed
+            self._pos[living], self._quat[living], self._vel[living] = \
+                arr[:, 0:3], arr[:, 3:7], arr[:, 7:10]
         self._t_read = self.time
 
     def positions(self) -> np.ndarray:
@@ -478,6 +504,7 @@ class PybulletBackend:
             self._refresh()
             pb.removeBody(self._bodies[i], physicsClientId=self._cid)
             self.alive[i] = False
+            self._com_state[i] = None
             self._vel[i] = 0.0
             self._acc[i] = 0.0
 
