@@ -162,6 +162,30 @@ def test_interface_matches_the_point_mass_backend():
             assert out.shape == (3, 2) and np.all(np.isfinite(out))
         np.testing.assert_allclose(world.positions(), [[0, 0], [3, 0], [6, 0]], atol=1e-3)
         np.testing.assert_allclose(world.yaws(), [0.0, 0.3, 0.6], atol=1e-3)
+        # Accelerations: (F - mu_1 m g - mu_2 v) / m, per step or averaged between reads.
+        t = TYPES[2]
+        push = np.array([[0.0, 0.0], [5.0, 0.0], [0.0, 0.0]])
+        for k in range(30):
+            world.step(DT, push)
+            if k < 10 or k == 29:
+                v = world.velocities()[1, 0]
+                expected = (5.0 - t.dry_friction * t.mass * GRAVITY - t.fluid_friction * v) \
+                    / t.mass
+                assert world.accelerations()[1, 0] == pytest.approx(expected, rel=0.05)
+        assert np.abs(world.accelerations()[[0, 2]]).max() < 1e-3
+    finally:
+        world.close()
+
+
+def test_gui_visuals_build_in_direct_mode():
+    """The GUI's visual shapes (spheres, cylindrical links, prisms) build without a display."""
+    ell = Polygon([(2, -3), (4, -3), (4, 3), (-2, 3), (-2, 1), (2, 1)])
+    fleet = [RobotSpec(i, 1 + i, False, -6.0 + 2.0 * i, -6.0) for i in range(3)]
+    world = PybulletBackend(fleet, TYPES, obstacles=[ell], terrain='rough', half_size=10.0,
+                            visuals=True)
+    try:
+        world.step(DT, np.ones((3, 2)))
+        assert np.all(np.isfinite(world.positions()))
     finally:
         world.close()
 

@@ -24,8 +24,11 @@ Robots
     the GUI), so only the spheres touch the world ("point interaction with the
     environment"). The centre of mass is at the spheres' centres, low enough that the
     body cannot tip over below a ~70 degree slope; roll and pitch are further held by
-    a strong angular damping (``angular_damping``, also killing spin), so robots stay
-    upright and follow the ground.
+    a strong angular damping (``angular_damping`` 0.99: rotation decays e-fold in
+    0.22 s; it slows spin too), so robots stay upright and follow the ground. Robots
+    touch each other through their spheres as well, like the thesis's collision
+    surfaces; a robot much smaller than another could in principle slip between its
+    spheres, which the agents' separation forces never let happen.
 Friction (Table 4.1)
     Dry friction mu_1 is the contact friction: the robot's spheres have
     ``lateralFriction = mu_1`` and every static body 1.0, and Bullet multiplies the two,
@@ -47,7 +50,22 @@ Stepping
     so ``dt = 1 / physics_hz`` is one Bullet step. The state (positions, velocities,
     yaws) is read lazily, once per step at most, when asked for; ``accelerations`` are
     the mean over the steps since the previous read (the last step's when read every
-    step, the mean an IMU integrates otherwise).
+    step, the mean an IMU integrates otherwise). Robots are dropped from just above the
+    ground (found by ray casts) and settle for 0.25 s before t = 0. Why 100 Hz: the
+    fastest rate at which Bullet's contacts stay accurate here (terminal velocities
+    within 0.2 % of Table 4.1's, see tests/unit/sim/test_world.py) is not the limit;
+    cost is: each of a robot's four sphere contacts on the heightfield costs about
+    1.5-2 us per step, so 240 Hz would cost 2.4x for no visible gain. No continuous
+    collision detection: at the controllers' forces (<= 3 N, speeds <= 0.5 m/s) a body
+    moves 5 mm per step, far less than any sphere radius or wall.
+Performance
+    Every static body (ground, walls, obstacle prisms) is a maximal-coordinate rigid
+    body: as a fixed-base multibody (pybullet's default) each robot contact goes
+    through the multibody solver and stepping costs three times as much. Robots are
+    rigid bodies too. pybullet has no batched state query, so the per-step Python
+    work is one ``applyExternalForce`` per pushed robot plus, when read, two state
+    queries per robot, all in plain loops (for tens of robots cheaper than numpy).
+    ``scripts/sim_benchmark.py`` measures it.
 Bad input
     Robots of unknown types, outside the workspace, inside (or overlapping) obstacles
     or overlapping each other raise ``WorldError`` (a ``ValueError``) at construction,
@@ -232,6 +250,7 @@ class PybulletBackend:
         self._obstacle_bodies = [self._build_obstacle(o, z_lo, z_hi + obstacle_height)
                                  for o in self.obstacles]
         self._build_robots(angular_damping, z_lo, z_hi)
+        self._settle()
         if self._visuals:
             pb.configureDebugVisualizer(pb.COV_ENABLE_RENDERING, 1, physicsClientId=cid)
             pb.resetDebugVisualizerCamera(0.9 * self.half_size, 30.0, -50.0, [0, 0, 0],
@@ -384,6 +403,16 @@ class PybulletBackend:
         # Per robot (x, y, z, vx, vy, vz) at the last read, None once removed.
         self._com_state: list[tuple | None] = [
             (float(x), float(y), float(z), 0.0, 0.0, 0.0) for x, y, z in self._pos]
+
+    def _settle(self, seconds: float = 0.25) -> None:
+        """Let the dropped robots land before t = 0, so the first push meets friction."""
+        for _ in range(int(round(seconds / self._h))):
+            pb.stepSimulation(physicsClientId=self._cid)
+        self._stale = True
+        self._refresh()
+        self._acc[:] = 0.0
+        self._vel[:] = 0.0
+        self._t_read = 0.0
 
     # -- the Backend interface
     def step(self, dt: float, forces) -> None:
