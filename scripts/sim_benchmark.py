@@ -102,6 +102,7 @@ def main(argv: list[str] | None = None) -> int:
         'real_time_factor': round(sim_s / wall_s, 2),
         'cpu_real_time_factor': round(sim_s / cpu_s, 2) if cpu_s > 0 else None,
         'ms_per_step': round(1e3 * wall_s / world.steps, 4),
+        'physics_share': round(world.physics_wall_s / wall_s, 3),
         'build_s': round(build_s, 3),
         'read_every': args.read_every,
         'max_tilt_deg': round(max_tilt, 2),
