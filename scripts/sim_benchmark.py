@@ -5,8 +5,9 @@ Builds the +/-50 m workspace with N robots of the three Table 4.1 types in the t
 proportions (20:20:10), then steps it for ``--seconds`` of simulated time while a crude
 velocity controller at ``--control-hz`` drives every robot towards a random velocity of
 at most 0.5 m/s (new targets every 2 s), reading the state every ``--read-every``
-physics steps (1, the default, is the worst case: a read after every step). Prints one
-JSON line::
+physics steps (1, the default, is the worst case: a read after every step; ``--read
+poses`` reads velocities only at the control rate, as sim_node does at its IMU rate).
+Prints one JSON line::
 
     scripts/env.sh python scripts/sim_benchmark.py --robots 50 --terrain rough
 
@@ -41,6 +42,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                     help='rate of the random-velocity controller (default 50 Hz)')
     ap.add_argument('--read-every', type=int, default=1,
                     help='read the state every K physics steps (default 1)')
+    ap.add_argument('--read', choices=('both', 'poses'), default='both',
+                    help='what each read fetches: poses and velocities (default) or poses '
+                    'only (velocities then every control period)')
     ap.add_argument('--seed', type=int, default=0)
     ap.add_argument('--half-size', type=float, default=50.0)
     args = ap.parse_args(argv)
@@ -80,8 +84,11 @@ def main(argv: list[str] | None = None) -> int:
                 [np.cos(heading), np.sin(heading)])
         if k % args.read_every == 0:
             world.positions()
-            vel = world.velocities()
+            if args.read == 'both':
+                vel = world.velocities()
         if k % control_every == 0:
+            if args.read == 'poses':
+                vel = world.velocities()
             err = target - vel
             direction = target / np.maximum(np.linalg.norm(target, axis=1, keepdims=True), 1e-9)
             forces = dry * direction + fluid * target + 2.0 * mass * err
@@ -105,6 +112,7 @@ def main(argv: list[str] | None = None) -> int:
         'physics_share': round(world.physics_wall_s / wall_s, 3),
         'build_s': round(build_s, 3),
         'read_every': args.read_every,
+        'read': args.read,
         'max_tilt_deg': round(max_tilt, 2),
         'inside_workspace': bool(np.all(np.abs(pos) <= args.half_size)),
         'max_slope_deg': round(world.heightmap.max_slope_deg, 2) if world.heightmap else 0.0,

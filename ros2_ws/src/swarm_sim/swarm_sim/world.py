@@ -41,16 +41,17 @@ Friction (Table 4.1)
 Input
     A planar force (N, map frame) per robot, applied at the centre of mass with
     ``applyExternalForce`` in the world frame. The application point is the centre of
-    mass extrapolated from the last state read (``p + v * elapsed``), so reading the
-    state every step is not needed to avoid spurious torques. Forces are held over a
+    mass extrapolated from the last reads (``p + v * elapsed``), so reading the state
+    every step is not needed to avoid spurious torques. Forces are held over a
     step (zero-order hold, like the agents' controllers).
 Stepping
     A fixed physics step of ``1 / physics_hz`` (100 Hz by default, sim_node's rate):
     ``step(dt)`` runs ``ceil(dt * physics_hz)`` equal sub-steps of at most that length,
-    so ``dt = 1 / physics_hz`` is one Bullet step. The state (positions, velocities,
-    yaws) is read lazily, once per step at most, when asked for; ``accelerations`` are
-    the mean over the steps since the previous read (the last step's when read every
-    step, the mean an IMU integrates otherwise). Robots are dropped from just above the
+    so ``dt = 1 / physics_hz`` is one Bullet step. The state is read lazily, once per
+    step at most, when asked for: poses (positions, yaws, tilts) and velocities
+    separately, as each costs one pybullet call per robot; ``accelerations`` are the
+    mean over the steps since the previous velocity read (the last step's when read
+    every step, the mean an IMU integrates otherwise). Robots are dropped from just above the
     ground (found by ray casts) and settle for 0.25 s before t = 0. Why 100 Hz: the
     fastest rate at which Bullet's contacts stay accurate here (terminal velocities
     within 0.2 % of Table 4.1's, see tests/unit/sim/test_world.py) is not the limit;
@@ -400,8 +401,8 @@ class PybulletBackend:
         self._quat = np.array([_quat_yaw(r.yaw) for r in self.fleet])
         self._vel = np.zeros((self.n, 3))
         self._acc = np.zeros((self.n, 2))
-        self._t_read = 0.0
-        self._stale = False
+        self._t_pose = self._t_vel = 0.0
+        self._poses_stale = self._vels_stale = False
         # Per robot (x, y, z, vx, vy, vz) at the last read, None once removed.
         self._com_state: list[tuple | None] = [
             (float(x), float(y), float(z), 0.0, 0.0, 0.0) for x, y, z in self._pos]
@@ -410,11 +411,11 @@ class PybulletBackend:
         """Let the dropped robots land before t = 0, so the first push meets friction."""
         for _ in range(int(round(seconds / self._h))):
             pb.stepSimulation(physicsClientId=self._cid)
-        self._stale = True
-        self._refresh()
+        self._poses_stale = self._vels_stale = True
+        self._read_poses()
+        self._read_velocities()
         self._acc[:] = 0.0
-        self._vel[:] = 0.0
-        self._t_read = 0.0
+        self._t_pose = self._t_vel = 0.0
 
     # -- the Backend interface
     def step(self, dt: float, forces) -> None:
@@ -453,7 +454,7 @@ class PybulletBackend:
         clock = time.perf_counter
         for _ in range(substeps):
             # Centre of mass extrapolated from the last read (module docstring).
-            e = self.time - self._t_read
+            e = self.time - self._t_pose
             for body, force, (px, py, pz, vx, vy, vz) in pushes:
                 # Positional client id: keyword parsing costs ~1 us a call.
                 apply(body, -1, force, (px + vx * e, py + vy * e, pz + vz * e), world, cid)
@@ -462,70 +463,88 @@ class PybulletBackend:
             self.physics_wall_s += clock() - t0
             self.steps += 1
             self.time += h
-        self._stale = True
+        self._poses_stale = self._vels_stale = True
 
-    def _refresh(self) -> None:
-        """Read every living body's state once since the last step."""
-        if not self._stale:
+    def _read_poses(self) -> None:
+        """Read every living body's pose, once per step at most (positions, yaws, tilts)."""
+        if not self._poses_stale:
             return
-        self._stale = False
-        cid = self._cid
-        get_pose, get_vel = pb.getBasePositionAndOrientation, pb.getBaseVelocity
-        rows = []
-        living = []
-        com_state = self._com_state
+        self._poses_stale = False
+        cid, get_pose, com = self._cid, pb.getBasePositionAndOrientation, self._com_state
+        rows, living = [], []
         for i, body in enumerate(self._bodies):
-            if com_state[i] is None:
+            state = com[i]
+            if state is None:
                 continue
             p, q = get_pose(body, cid)
-            v = get_vel(body, cid)[0]
-            com_state[i] = p + v
-            rows.append(p + q + v)
+            com[i] = p + state[3:]
+            rows.append(p + q)
             living.append(i)
-        if not rows:
+        if rows:
+            arr = np.array(rows)
+            if len(living) == self.n:
+                self._pos, self._quat = arr[:, :3], arr[:, 3:]
+            else:
+                self._pos[living], self._quat[living] = arr[:, :3], arr[:, 3:]
+        self._t_pose = self.time
+
+    def _read_velocities(self) -> None:
+        """Read every living body's velocity, once per step at most (and accelerations)."""
+        if not self._vels_stale:
             return
-        arr = np.array(rows)
-        elapsed = self.time - self._t_read
-        if len(living) == self.n:
-            if elapsed > 0:
-                self._acc = (arr[:, 7:9] - self._vel[:, :2]) / elapsed
-            self._pos, self._quat, self._vel = arr[:, 0:3], arr[:, 3:7], arr[:, 7:10]
-        else:
-            if elapsed > 0:
-                self._acc[living] = (arr[:, 7:9] - self._vel[living, :2]) / elapsed
-            self._pos[living], self._quat[living], self._vel[living] = \
-                arr[:, 0:3], arr[:, 3:7], arr[:, 7:10]
-        self._t_read = self.time
+        self._vels_stale = False
+        cid, get_vel, com = self._cid, pb.getBaseVelocity, self._com_state
+        rows, living = [], []
+        for i, body in enumerate(self._bodies):
+            state = com[i]
+            if state is None:
+                continue
+            v = get_vel(body, cid)[0]
+            com[i] = state[:3] + v
+            rows.append(v)
+            living.append(i)
+        elapsed = self.time - self._t_vel
+        if rows:
+            vel = np.array(rows)
+            if len(living) == self.n:
+                if elapsed > 0:
+                    self._acc = (vel[:, :2] - self._vel[:, :2]) / elapsed
+                self._vel = vel
+            else:
+                if elapsed > 0:
+                    self._acc[living] = (vel[:, :2] - self._vel[living, :2]) / elapsed
+                self._vel[living] = vel
+        self._t_vel = self.time
 
     def positions(self) -> np.ndarray:
         """Planar positions (N, 2) in metres; removed robots keep their last one."""
-        self._refresh()
+        self._read_poses()
         return self._pos[:, :2].copy()
 
     def velocities(self) -> np.ndarray:
         """Planar velocities (N, 2) in m/s; zero for removed robots."""
-        self._refresh()
+        self._read_velocities()
         return self._vel[:, :2].copy()
 
     def accelerations(self) -> np.ndarray:
-        """Mean planar accelerations (N, 2) since the previous state read (m/s^2)."""
-        self._refresh()
+        """Mean planar accelerations (N, 2) since the previous velocity read (m/s^2)."""
+        self._read_velocities()
         return self._acc.copy()
 
     def yaws(self) -> np.ndarray:
         """Heading of every body (rad, about the world z axis)."""
-        self._refresh()
+        self._read_poses()
         x, y, z, w = self._quat.T
         return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
     def heights(self) -> np.ndarray:
         """Height of every body's centre of mass (m)."""
-        self._refresh()
+        self._read_poses()
         return self._pos[:, 2].copy()
 
     def tilts(self) -> np.ndarray:
         """Angle between every body's up axis and the world's (rad): 0 is upright."""
-        self._refresh()
+        self._read_poses()
         x, y = self._quat[:, 0], self._quat[:, 1]
         return np.arccos(np.clip(1.0 - 2.0 * (x * x + y * y), -1.0, 1.0))
 
@@ -535,7 +554,8 @@ class PybulletBackend:
         if not 0 <= i < self.n:
             raise IndexError(f'robot index {i} outside 0..{self.n - 1}')
         if self.alive[i]:
-            self._refresh()
+            self._read_poses()
+            self._read_velocities()
             pb.removeBody(self._bodies[i], physicsClientId=self._cid)
             self.alive[i] = False
             self._com_state[i] = None
