@@ -1,9 +1,10 @@
-"""Sensor noise models of thesis 4.2: statistics match the configured values, seeded.
+"""Sensor noise models of thesis 3.1.4 / 4.2: statistics match the configured values.
 
-Thesis 4.2 adds to the true acceleration "a random bias and a white noise with zero mean
-and sigma_acc standard deviation" (bias up to 0.1 mg, noise 0.01 m/s^2) and Gaussian
-noise of sigma_meas = 2 m to positions. Sample sizes are chosen so the checks are
-several standard errors wide and still catch a wrong constant.
+Thesis 3.1.4 adds to the true acceleration "a random bias and a white noise with zero
+mean and sigma_acc standard deviation" and Gaussian noise of sigma_meas to positions;
+4.2 gives the values: bias up to 0.1 mg, white noise 0.01 m/s^2, position noise 2 m.
+Sample sizes are chosen so that each check is several standard errors wide yet still
+catches a wrong constant.
 """
 
 from __future__ import annotations

@@ -87,6 +87,7 @@ import numpy as np
 import pybullet as pb
 import shapely
 from shapely.geometry import Point, Polygon
+from shapely.geometry.polygon import orient
 
 from swarm_mission.robot_types import GRAVITY, robot_type, RobotType, RobotTypeError
 from swarm_sim.terrain import (
@@ -112,7 +113,7 @@ def robot_geometry(rtype: RobotType) -> tuple[float, float]:
 
     The spheres sit at (+/-a, +/-a) with radius s = 0.2 r_c and a = (r_c - s) / sqrt(2),
     so the coverage circle of radius r_c (Table 4.1) is the smallest circle covering
-    the collision surface, as thesis 3.2.3 defines it.
+    the collision surface, as thesis 3.2.1.1 defines it.
     """
     s = SPHERE_FRACTION * rtype.coverage_radius
     return s, (rtype.coverage_radius - s) / math.sqrt(2.0)
@@ -322,7 +323,7 @@ class PybulletBackend:
         bodies = []
         cid = self._cid
         for piece in pieces:
-            ring = np.asarray(piece.exterior.coords)[:-1]
+            ring = np.asarray(orient(piece, 1.0).exterior.coords)[:-1]   # counter-clockwise
             centre = ring.mean(axis=0)
             local = ring - centre
             verts = [[x, y, z] for z in (bottom, z_top) for x, y in local]
