@@ -98,6 +98,8 @@ def main(argv: list[str] | None = None) -> int:
     max_tilt = float(np.degrees(world.tilts().max()))
     sim_s = world.time
     pos = world.positions()
+    ground = world.heightmap.height_at(pos) if world.heightmap else np.zeros(n)
+    clearance = float((world.heights() - ground).min())   # < 0: fell through the ground
     result = {
         'robots': n,
         'terrain': args.terrain,
@@ -115,6 +117,7 @@ def main(argv: list[str] | None = None) -> int:
         'read': args.read,
         'max_tilt_deg': round(max_tilt, 2),
         'inside_workspace': bool(np.all(np.abs(pos) <= args.half_size)),
+        'min_ground_clearance_m': round(clearance, 4),
         'max_slope_deg': round(world.heightmap.max_slope_deg, 2) if world.heightmap else 0.0,
         'load_avg_1min': round(os.getloadavg()[0], 2),
         'cpus': os.cpu_count(),
