@@ -26,6 +26,7 @@ from swarm_mission.robot_types import (
 def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
                method: str = 'bubble', initial_position: Sequence[float] = (0.0, 0.0),
                seed: int = 0, outer_period_s: float = 0.5,
+               consensus_period_s: float = 2.0,
                localization_period_s: float | None = None,
                robot_types_file: str | None = None, external_pose: bool = False,
                localization: LocalizationConfig | None = None) -> AgentBrain:
@@ -39,7 +40,8 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
         loc = dataclasses.replace(loc, period_s=localization_period_s)
     config = BrainConfig(
         agent_id=agent_id, agent_type=agent_type, is_beacon=is_beacon or external_pose,
-        method=method, outer_period_s=outer_period_s, localization=loc,
+        method=method, outer_period_s=outer_period_s,
+        consensus_period_s=consensus_period_s, localization=loc,
         type_radii={t: r.coverage_radius for t, r in types.items()})
     # eq. 3.111's u_max shapes the LQR weights of the linear model; the actuator must
     # also overcome Coulomb friction (mu_1 m g is 3.1 N for type 3, above u_max alone).

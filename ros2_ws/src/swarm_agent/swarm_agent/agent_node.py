@@ -66,7 +66,8 @@ PARAMETERS = {
     'initial_y': (0.0, 'Deployment position y in metres (initial estimate)'),
     'seed': (0, "Seed of this agent's random generator"),
     'control_rate_hz': (50.0, 'Rate of the LQR inner loop and of cmd_force'),
-    'outer_period_s': (0.5, 'Period of the outer loop (costs, assignment, setpoint), thesis 2 Hz'),
+    'outer_period_s': (0.5, 'Period of the outer loop (setpoint, forces), thesis 2 Hz'),
+    'consensus_period_s': (2.0, 'Period of cost reports and Hungarian assignment rounds'),
     'localization_period_s': (3.0, 'Period of trilateration updates (thesis 4.2: 3 s)'),
     'state_rate_hz': (2.0, 'Rate of the state and routes introspection topics'),
     'external_pose': (False, 'Hardware: use the camera pose topic instead of the LPS'),
@@ -92,6 +93,7 @@ class AgentNode(Node):
             agent_id=p['agent_id'], agent_type=p['agent_type'], is_beacon=p['is_beacon'],
             method=p['method'], initial_position=(p['initial_x'], p['initial_y']),
             seed=p['seed'], outer_period_s=p['outer_period_s'],
+            consensus_period_s=p['consensus_period_s'],
             localization_period_s=p['localization_period_s'],
             robot_types_file=p['robot_types_file'] or None,
             external_pose=p['external_pose'])

@@ -18,6 +18,13 @@
 - Multi-hop delivery: routed unicast DATA hop by hop along next hops with a TTL, and
   FLOOD broadcasts deduplicated by (origin, flood id); messages longer than one frame
   are fragmented and reassembled.
+- Flood relaying by self-pruning (Lim and Kim, 2001): the one-hop routes in a
+  neighbour's adverts are its neighbour set, so a node relays a flood only when some of
+  its own neighbours are not neighbours of the node it heard the flood from. In a dense
+  swarm, where every robot hears every other, a flood then costs one frame instead of
+  one per robot (measured: the 50-agent thesis scenario sent 92 frames per agent per
+  second before). A deterministic fraction ``flood_relay_fraction`` of the pruned nodes
+  relays anyway, for redundancy against packet loss.
 
 Malformed, truncated or unknown frames are counted in ``stats`` and dropped.
 """
@@ -25,8 +32,10 @@ Malformed, truncated or unknown frames are counted in ``stats`` and dropped.
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass, field
 import logging
+import zlib
 
 from swarm_agent import wire
 from swarm_agent.packet import BROADCAST, Kind, Packet
@@ -48,6 +57,7 @@ class DsdvConfig:
     dedup_memory: int = 4096
     reassembly_timeout_s: float = 5.0
     stale_generations: int = 6  # full dumps a shorter route may lag before a longer one wins
+    flood_relay_fraction: float = 0.15  # pruned nodes that relay anyway (loss redundancy)
 
 
 @dataclass
@@ -87,7 +97,8 @@ class DsdvRouter:
         self.sequence = 0                       # own destination sequence number (even)
         self.table: dict[int, RouteEntry] = {}
         self.heard: dict[int, float] = {}       # neighbour -> last time heard
-        self._info = b''
+        self.two_hop: dict[int, set[int]] = {}  # neighbour -> its advertised neighbours
+        self._info: bytes | Callable[[], bytes] = b''
         self._tx_seq = 0
         self._flood_id = 0
         self._frag_id = 0
@@ -110,9 +121,12 @@ class DsdvRouter:
         return Packet(self.id, destination, int(kind), self._tx_seq,
                       self.config.default_ttl if ttl is None else ttl, payload)
 
-    def set_heartbeat_info(self, info: bytes) -> None:
-        """Small application blob carried by every heartbeat (at most 96 bytes)."""
-        self._info = bytes(info)
+    def set_heartbeat_info(self, info: bytes | Callable[[], bytes]) -> None:
+        """Small application blob carried by every heartbeat (at most 96 bytes).
+
+        A callable is asked for the blob only when a heartbeat goes out.
+        """
+        self._info = info if callable(info) else bytes(info)
 
     # ------------------------------------------------------------------ queries
     def routes(self) -> list[RouteEntry]:
@@ -140,8 +154,9 @@ class DsdvRouter:
                 self._break_link(neighbour)
         if t >= self._next_heartbeat:
             self._next_heartbeat = t + self.config.heartbeat_period_s
+            info = self._info() if callable(self._info) else self._info
             out.append(self._packet(BROADCAST, Kind.HEARTBEAT,
-                                    wire.encode_heartbeat(self.sequence, self._info), ttl=1))
+                                    wire.encode_heartbeat(self.sequence, info), ttl=1))
         if t >= self._next_full:
             self._next_full = t + self.config.full_dump_period_s
             self.sequence += SEQUENCE_STEP
@@ -170,6 +185,7 @@ class DsdvRouter:
     def _break_link(self, neighbour: int) -> None:
         """Fig. 3.9: every route through the neighbour gets hops = inf and an odd sequence."""
         self.heard.pop(neighbour, None)
+        self.two_hop.pop(neighbour, None)
         for route in self.table.values():
             if route.next_hop == neighbour and route.hop_count < INFINITE_HOPS:
                 route.hop_count = INFINITE_HOPS
@@ -202,6 +218,7 @@ class DsdvRouter:
             elif kind in (Kind.DSDV_FULL, Kind.DSDV_INCREMENTAL):
                 seq, adverts = wire.decode_adverts(packet.payload)
                 self._heard(t, packet.source, None)
+                self._learn_neighbourhood(packet.source, adverts)
                 self._merge(packet.source, adverts)
             elif kind == Kind.DATA:
                 self._on_data(t, packet, out)
@@ -234,6 +251,30 @@ class DsdvRouter:
         best = seq if route is None else max(seq, route.sequence_number
                                              + route.sequence_number % 2)
         self.table[neighbour] = RouteEntry(neighbour, neighbour, 1, best)
+
+    def _learn_neighbourhood(self, neighbour: int, adverts: list[Advert]) -> None:
+        """A neighbour's one-hop adverts are its neighbour set (for flood pruning)."""
+        known = self.two_hop.setdefault(neighbour, set())
+        for adv in adverts:
+            if adv.hops == 1:
+                known.add(adv.destination)
+            elif adv.destination != neighbour:
+                known.discard(adv.destination)
+
+    def _should_relay(self, previous_hop: int, origin: int, flood_id: int) -> bool:
+        """Self-pruning: relay when a neighbour of ours may not have heard the flood."""
+        covered = self.two_hop.get(previous_hop)
+        if covered is None:
+            return True  # the sender's neighbourhood is unknown: relay to be safe
+        if any(n != previous_hop and n not in covered for n in self.heard):
+            return True
+        fraction = self.config.flood_relay_fraction
+        if fraction <= 0.0:
+            return False
+        # Deterministic per (flood, node): the same decision on every run.
+        draw = zlib.crc32(flood_id.to_bytes(2, 'little') + origin.to_bytes(2, 'little')
+                          + self.id.to_bytes(2, 'little'))
+        return draw < fraction * 0xFFFFFFFF
 
     def _merge(self, neighbour: int, adverts: list[Advert]) -> None:
         """Apply the two selection rules (3.1.2.1) to a neighbour's adverts."""
@@ -327,12 +368,14 @@ class DsdvRouter:
             self._count('duplicates')
             return
         self._deliver(t, origin, Kind.FLOOD, chunk, out)
-        if packet.ttl > 1:
+        if packet.ttl <= 1:
+            self._count('dropped_ttl')
+        elif not self._should_relay(packet.source, origin, flood_id):
+            self._count('flood_pruned')
+        else:
             self._count('forwarded')
             out.packets.append(self._packet(BROADCAST, Kind.FLOOD, packet.payload,
                                             ttl=packet.ttl - 1))
-        else:
-            self._count('dropped_ttl')
 
     def _deliver(self, t: float, origin: int, kind: int, chunk: bytes,
                  out: RouterOutput) -> None:
