@@ -34,14 +34,16 @@ class PointMassSwarm:
         """Advance by ``dt`` under the applied forces (N, map frame), shape (N, 2)."""
         forces = np.nan_to_num(np.asarray(forces, dtype=float).reshape(-1, 2))
         v0 = self.velocities
-        # Applied and fluid forces, fluid part implicit (unconditionally stable).
-        v = (v0 + dt * forces / self.mass[:, None]) / (1.0 + dt * self.fluid / self.mass)[:, None]
-        # Coulomb dry friction as a bounded impulse.
+        # Applied force, then Coulomb dry friction as an impulse bounded by mu_1 g dt,
+        # then fluid friction implicitly (unconditionally stable). Dry friction acts
+        # before the implicit division so that a constant force F gives exactly the
+        # continuous terminal speed (F - mu_1 m g) / mu_2.
+        v = v0 + dt * forces / self.mass[:, None]
         speed = np.linalg.norm(v, axis=1)
         dv_max = self.dry * self.gravity * dt
         stopping = speed <= dv_max
         scale = np.where(stopping, 0.0, 1.0 - dv_max / np.maximum(speed, 1e-12))
-        v = v * scale[:, None]
+        v = v * scale[:, None] / (1.0 + dt * self.fluid / self.mass)[:, None]
         self._accel = (v - v0) / dt
         self.velocities = v
         self.positions = self.positions + v * dt
