@@ -8,7 +8,9 @@ static const uint8_t HALF_STEP[8] = { 0x01, 0x03, 0x02, 0x06, 0x04, 0x0C, 0x08, 
 int16_t st_rate[3];
 uint16_t st_acc[3];
 uint8_t st_phase[3];
+#if !defined(__SDCC)
 int32_t st_position[3];
+#endif
 
 void stepper_init(void)
 {
@@ -17,7 +19,9 @@ void stepper_init(void)
         st_rate[i] = 0;
         st_acc[i] = 0;
         st_phase[i] = 0;
+#if !defined(__SDCC)
         st_position[i] = 0;
+#endif
     }
 }
 
@@ -37,10 +41,14 @@ void stepper_tick(void)
             st_acc[i] -= SWP_TICK_HZ;
             if (rate > 0) {
                 st_phase[i] = (st_phase[i] + 1) & 7;
+#if !defined(__SDCC)
                 st_position[i]++;
+#endif
             } else {
                 st_phase[i] = (st_phase[i] - 1) & 7;
+#if !defined(__SDCC)
                 st_position[i]--;
+#endif
             }
         }
     }

@@ -9,7 +9,9 @@
 extern int16_t st_rate[3];     /* half-steps per second, signed; written under HAL_CRITICAL */
 extern uint16_t st_acc[3];     /* phase accumulators, 0..SWP_TICK_HZ-1                     */
 extern uint8_t st_phase[3];    /* index into the half-step sequence, 0..7                  */
-extern int32_t st_position[3]; /* half-steps taken, signed (for tests and status)          */
+#if !defined(__SDCC)
+extern int32_t st_position[3]; /* half-steps taken, signed (host builds: tests only)       */
+#endif
 
 void stepper_init(void);
 /* One timer tick (1/SWP_TICK_HZ s): advance each channel whose accumulator overflows. */

@@ -1,0 +1,71 @@
+"""Fixtures of the bridge tests: the firmware's portable C built for the host."""
+
+from __future__ import annotations
+
+import ctypes
+import pathlib
+import shutil
+import subprocess
+
+import pytest
+
+FIRMWARE = pathlib.Path(__file__).resolve().parents[3] / 'firmware'
+
+
+class Firmware:
+    """The firmware library (build/host/libswarmfw.so) driven through ctypes."""
+
+    def __init__(self, path: pathlib.Path) -> None:
+        self.lib = ctypes.CDLL(str(path))
+        self.lib.fw_feed.argtypes = [ctypes.c_char_p, ctypes.c_uint32]
+        self.lib.fw_ticks.argtypes = [ctypes.c_uint32]
+        self.lib.mixer_mix.argtypes = [ctypes.c_uint16, ctypes.c_uint16]
+        self.lib.mixer_mix.restype = ctypes.c_uint8
+        self.rates = (ctypes.c_int16 * 3).in_dll(self.lib, 'st_rate')
+        self.mix_rate = (ctypes.c_int16 * 3).in_dll(self.lib, 'mix_rate')
+        self.positions = (ctypes.c_int32 * 3).in_dll(self.lib, 'st_position')
+        self.coils = (ctypes.c_uint8 * 3).in_dll(self.lib, 'host_coils')
+        self.tx = (ctypes.c_uint8 * 8192).in_dll(self.lib, 'host_tx')
+        self.tx_len = ctypes.c_uint32.in_dll(self.lib, 'host_tx_len')
+        # xbee_parser_t: state escaped length index sum buf[32] frames bad truncated oversize
+        self.parser = (ctypes.c_uint8 * 42).in_dll(self.lib, 'xp')
+
+    def reset(self) -> None:
+        """Power-up state."""
+        self.lib.fw_reset()
+
+    def feed(self, data: bytes) -> None:
+        """Bytes on the board's UART."""
+        self.lib.fw_feed(bytes(data), len(data))
+
+    def ticks(self, n: int) -> None:
+        """n timer ticks of 1 ms, each followed by a main-loop poll."""
+        self.lib.fw_ticks(n)
+
+    def take_tx(self) -> bytes:
+        """Bytes the board sent since the last call."""
+        out = bytes(self.tx[:self.tx_len.value])
+        self.lib.fw_clear_tx()
+        return out
+
+    def parser_counters(self) -> dict[str, int]:
+        """The C parser's counters (modulo 256)."""
+        base = 5 + 32
+        names = ('frames', 'bad_checksums', 'truncated', 'oversize', 'garbage')
+        return {n: self.parser[base + i] for i, n in enumerate(names)}
+
+
+@pytest.fixture(scope='session')
+def firmware(tmp_path_factory) -> Firmware:
+    """Build the firmware's host target with its Makefile (gcc) and load it."""
+    if shutil.which('make') is None or shutil.which('gcc') is None:
+        pytest.skip('make and gcc are needed to build the firmware for the host '
+                    '(apt-get install build-essential)')
+    out = tmp_path_factory.mktemp('fw_host')
+    result = subprocess.run(['make', '-C', str(FIRMWARE), 'host', f'HOST_DIR={out}'],
+                            capture_output=True, text=True)
+    assert result.returncode == 0, f'make host failed:\n{result.stdout}\n{result.stderr}'
+    assert 'selftest: 7 of 7 checks passed' in result.stdout
+    fw = Firmware(out / 'libswarmfw.so')
+    fw.reset()
+    return fw
