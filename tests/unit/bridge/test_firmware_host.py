@@ -1,0 +1,168 @@
+"""The firmware's portable C (built with gcc, loaded with ctypes) against the Python side:
+same frames, same decoded commands, same fixed-point mix (eqs. 5.1-5.3), 500 ms watchdog."""
+
+from __future__ import annotations
+
+import math
+import pathlib
+import re
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from swarm_bridge import protocol, xbee
+
+HOST = 0x0013A20041FFFF01
+HEADER = pathlib.Path(__file__).resolve().parents[3] / 'firmware/include/swarm_protocol.h'
+
+
+def command_frame(message: protocol.Message, address: int = HOST) -> bytes:
+    return xbee.encode(xbee.RxPacket(address, message.encode()))
+
+
+def board_messages(data: bytes) -> list:
+    out = []
+    for frame_data in xbee.FrameDecoder().feed(data):
+        frame = xbee.parse_api_frame(frame_data)
+        assert isinstance(frame, xbee.TxRequest)
+        out.append((frame.address, protocol.decode_message(frame.data)))
+    return out
+
+
+def test_header_constants_equal_the_python_ones():
+    text = HEADER.read_text()
+    defines = dict(re.findall(r'#define SWP_(\w+)\s+(0x[0-9A-Fa-f]+|\d+)\b', text))
+    modules = {'XBEE_': xbee, 'API_': xbee, 'MSG_': protocol, 'LEN_': protocol,
+               'ACK_': protocol, 'FAULT_': protocol, 'DELIVERY_': xbee}
+    checked = 0
+    for name, value in defines.items():
+        py = name.removeprefix('XBEE_')
+        module = next((m for p, m in modules.items() if name.startswith(p)), protocol)
+        if hasattr(module, py):
+            assert getattr(module, py) == int(value, 0), name
+            checked += 1
+    assert checked >= 35
+    table = re.search(r'SWP_SIN_Q15_TABLE \{([^}]*)\}', text).group(1)
+    assert tuple(int(v) for v in re.findall(r'\d+', table)) == protocol.SIN_Q15_TABLE
+
+
+def test_cmd_vel_is_decoded_mixed_applied_and_acknowledged(firmware):
+    firmware.reset()
+    firmware.feed(b'\x00garbage\x7e\x00' + command_frame(protocol.CmdVel(9, 300, 90)))
+    assert list(firmware.rates) == list(protocol.mix_fixed(300, 90)[0])
+    sent = board_messages(firmware.take_tx())
+    assert sent == [(HOST, protocol.Ack(9, protocol.MSG_CMD_VEL, protocol.ACK_OK))]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(0, 0xFFFF), st.integers(0, 359))
+def test_c_mixer_equals_python_mixer(firmware, speed, direction):
+    clipped = firmware.lib.mixer_mix(speed, direction)
+    rates, py_clipped = protocol.mix_fixed(speed, direction)
+    assert tuple(firmware.mix_rate) == rates and bool(clipped) == py_clipped
+
+
+@given(st.integers(0, 3000), st.integers(0, 359))
+def test_fixed_point_mix_follows_eqs_5_1_to_5_3(speed, direction):
+    rates, clipped = protocol.mix_fixed(speed, direction)
+    # wheel speed rounded to 0.1 mm/s, then to whole half-steps/s: at most 1.7 steps/s
+    bound = 0.5 * protocol.STEPS_PER_UNIT_Q12 / 4096 + 0.5 + 1e-3
+    ideal = protocol.wheel_speeds(speed / protocol.SPEED_UNITS_PER_M_S, direction)
+    for rate, v in zip(rates, ideal):
+        steps = v * protocol.HALF_STEPS_PER_M
+        if abs(steps) < protocol.MAX_STEP_RATE - 1:
+            assert abs(rate - steps) <= bound + abs(steps) * 1e-3
+        else:
+            assert abs(rate) == protocol.MAX_STEP_RATE or abs(rate - steps) <= bound
+
+
+@given(st.floats(-0.03, 0.03), st.floats(-0.03, 0.03), st.floats(-math.pi, math.pi))
+def test_body_command_reproduces_the_map_velocity(vx, vy, yaw):
+    cmd = protocol.command_for(vx, vy, yaw, 1.0, 0)
+    wheels = protocol.wheel_speeds(cmd.speed / protocol.SPEED_UNITS_PER_M_S, cmd.direction)
+    bx, by = protocol.body_velocity_from_wheels(wheels)
+    c, s = math.cos(yaw), math.sin(yaw)
+    mx, my = c * bx - s * by, s * bx + c * by
+    tolerance = 1e-4 + math.hypot(vx, vy) * math.radians(0.5)
+    assert math.hypot(mx - vx, my - vy) <= tolerance
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.one_of(
+    st.builds(protocol.CmdVel, st.integers(0, 255), st.integers(0, 0xFFFF),
+              st.integers(0, 359)).map(command_frame),
+    st.builds(protocol.Stop, st.integers(0, 255)).map(command_frame),
+    st.binary(max_size=20)), max_size=8), st.data())
+def test_c_parser_and_python_decoder_agree_on_any_stream(firmware, chunks, data):
+    stream = bytearray(b''.join(chunks))
+    for _ in range(data.draw(st.integers(0, 3))):  # random corruptions
+        if stream:
+            i = data.draw(st.integers(0, len(stream) - 1))
+            stream[i] = data.draw(st.integers(0, 255))
+    firmware.reset()
+    firmware.take_tx()
+    firmware.feed(bytes(stream))
+    py = xbee.FrameDecoder(max_frame_data=32)
+    frames = py.feed(bytes(stream))
+    counters = firmware.parser_counters()
+    assert counters['frames'] == len(frames) % 256
+    assert counters['bad_checksums'] == py.stats.bad_checksums % 256
+    assert counters['truncated'] == py.stats.truncated % 256
+    # and the last valid command decoded by Python is the one the board applies
+    commands = []
+    for f in frames:
+        if f[0] == xbee.API_RX_PACKET and len(f) >= xbee.RX_HEADER_LEN + 2:
+            try:
+                commands.append(protocol.decode_message(f[xbee.RX_HEADER_LEN:]))
+            except protocol.MessageError:
+                pass
+    commands = [c for c in commands if isinstance(c, protocol.CmdVel | protocol.Stop)]
+    expected = (0, 0, 0)
+    if commands and isinstance(commands[-1], protocol.CmdVel):
+        expected = protocol.mix_fixed(commands[-1].speed, commands[-1].direction)[0]
+    assert tuple(firmware.rates) == expected
+
+
+def test_watchdog_stops_the_motors_500_ms_after_the_last_command(firmware):
+    firmware.reset()
+    firmware.feed(command_frame(protocol.CmdVel(1, 200, 45)))
+    firmware.ticks(protocol.CMD_TIMEOUT_MS - 1)
+    assert any(firmware.rates) and any(firmware.coils)
+    firmware.ticks(1)
+    assert not any(firmware.rates) and not any(firmware.coils)
+    firmware.take_tx()
+    firmware.ticks(protocol.HEARTBEAT_MS)
+    status = [m for _, m in board_messages(firmware.take_tx())
+              if isinstance(m, protocol.Status)][-1]
+    assert status.faults & protocol.FAULT_WATCHDOG and status.rates == (0, 0, 0)
+    # a new command clears the watchdog fault and moves again
+    firmware.feed(command_frame(protocol.CmdVel(2, 200, 45)))
+    assert any(firmware.rates)
+
+
+def test_steps_follow_the_rates_and_heartbeats_report_them(firmware):
+    firmware.reset()
+    firmware.take_tx()
+    cmd = protocol.CmdVel(3, 250, 200)
+    rates = protocol.mix_fixed(cmd.speed, cmd.direction)[0]
+    for _ in range(4):  # keep the command fresh for 1 s
+        firmware.feed(command_frame(cmd))
+        firmware.ticks(250)
+    assert tuple(firmware.positions) == tuple(rates)  # 1 s at r half-steps/s: r steps
+    statuses = [m for _, m in board_messages(firmware.take_tx())
+                if isinstance(m, protocol.Status)]
+    assert len(statuses) == 1000 // protocol.HEARTBEAT_MS
+    assert statuses[0].faults & protocol.FAULT_RESET
+    assert statuses[-1].rates == rates and statuses[-1].last_cmd_seq == 3
+
+
+def test_bad_messages_are_refused_with_a_reason(firmware):
+    firmware.reset()
+    firmware.take_tx()
+    firmware.feed(xbee.encode(xbee.RxPacket(HOST, b'\x01\x05\x00')))            # short
+    firmware.feed(xbee.encode(xbee.RxPacket(HOST, b'\x01\x06\x00\x10\x01\x68')))  # 360 deg
+    firmware.feed(xbee.encode(xbee.RxPacket(HOST, b'\x42\x07')))                 # unknown
+    acks = [m for _, m in board_messages(firmware.take_tx())]
+    assert [a.result for a in acks] == [protocol.ACK_BAD_LENGTH, protocol.ACK_BAD_VALUE,
+                                        protocol.ACK_UNKNOWN_TYPE]
+    assert not any(firmware.rates)
