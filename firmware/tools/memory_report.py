@@ -14,7 +14,7 @@ def main() -> int:
     text = open(path).read()
     flash = ram = 0
     # Section table rows: name  type  address  location  size(hex, bytes)
-    for name, kind, _addr, location, size in re.findall(
+    for name, _kind, _addr, location, size in re.findall(
             r'^\s*(\S+)\s+(code|udata|idata|udata_ovr|udata_acs|udata_shr|data)\s+'
             r'(0x[0-9a-f]+)\s+(program|data)\s+(0x[0-9a-f]+)', text, re.M | re.I):
         n = int(size, 16)

@@ -17,7 +17,7 @@ from rclpy.qos import QoSProfile  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
 from swarm_bridge import protocol  # noqa: E402
-from swarm_bridge.bridge_node import SENSOR_QOS, STATE_QOS, BridgeNode  # noqa: E402
+from swarm_bridge.bridge_node import BridgeNode, SENSOR_QOS, STATE_QOS  # noqa: E402
 from swarm_bridge.emulator import EmulatedRadio, PtyEmulator  # noqa: E402
 from swarm_bridge.fleet import load_fleet  # noqa: E402
 
