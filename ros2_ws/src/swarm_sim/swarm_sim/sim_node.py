@@ -105,7 +105,8 @@ class PointMassBackend:
         pass
 
 
-def make_backend(name: str, fleet, types, obstacles, half_size, terrain, seed, gui):
+def make_backend(name: str, fleet, types, obstacles, half_size, terrain, seed, gui,
+                 physics_hz: float = 100.0):
     """The physics backend by name ('auto' prefers pybullet's swarm_sim.world)."""
     if name in ('pybullet', 'auto'):
         try:
@@ -115,7 +116,8 @@ def make_backend(name: str, fleet, types, obstacles, half_size, terrain, seed, g
                 raise
         else:
             return PybulletBackend(fleet, types, obstacles=obstacles, half_size=half_size,
-                                   terrain=terrain, seed=seed, gui=gui)
+                                   terrain=terrain, seed=seed, gui=gui,
+                                   physics_hz=physics_hz)
     return PointMassBackend(fleet, types)
 
 
@@ -139,7 +141,8 @@ class SimNode(Node):
         self.obstacles = obstacles
         self.rng = np.random.default_rng(p['seed'])
         self.backend = make_backend(p['backend'], self.fleet, types, obstacles,
-                                    p['half_size'], p['terrain'], p['seed'], p['gui'])
+                                    p['half_size'], p['terrain'], p['seed'], p['gui'],
+                                    p['physics_rate_hz'])
         self.medium = RadioMedium(MediumConfig(loss=p['loss']), self.rng, obstacles)
         self.imu = ImuModel(self.n, self.rng)
         self.gps = GpsModel(self.rng, std=p['gps_std'])
@@ -220,6 +223,8 @@ class SimNode(Node):
             if i is not None and self.alive[i]:
                 self.alive[i] = False
                 self.medium.remove(int(agent))
+                if hasattr(self.backend, 'remove'):
+                    self.backend.remove(i)  # the body leaves the world, not just the radio
                 self.get_logger().warning(f'robot {agent} removed (fault injection)')
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
