@@ -58,6 +58,9 @@ class Scenario:
     localization_period_s: float = 3.0
     sequence: Sequence[SequenceStep] = ()  # further shapes at given times (4.3.4)
     removals: Sequence[tuple[float, Sequence[int]]] = ()  # (time, agent ids) to remove
+    # Fault hooks: (time, fn) calls fn(swarm, t) once at that time, e.g. to change the
+    # radio range or the medium's obstacles mid-run (scripts/fault_study.py).
+    events: Sequence[tuple[float, Callable[[HeadlessSwarm, float], None]]] = ()
     medium: MediumConfig = field(default_factory=MediumConfig)
     fleet: Sequence[RobotSpec] | None = None
     half_size: float = 50.0
@@ -164,6 +167,7 @@ class HeadlessSwarm:
         self._apply_shape(0.0, sc.shape)
         pending_shapes = sorted(sc.sequence, key=lambda s: s.time)
         pending_removals = sorted(sc.removals, key=lambda r: r[0])
+        pending_events = sorted(sc.events, key=lambda e: e[0])
         last_change = 0.0
         steps = int(round(sc.duration_s / dt))
         every = {name: max(1, int(round(period / dt))) for name, period in (
@@ -185,6 +189,9 @@ class HeadlessSwarm:
                 last_change, settled_since = t, None
             while pending_removals and pending_removals[0][0] <= t:
                 self._remove(t, pending_removals.pop(0)[1])
+                last_change, settled_since = t, None
+            while pending_events and pending_events[0][0] <= t:
+                pending_events.pop(0)[1](self, t)
                 last_change, settled_since = t, None
             # Brains: control step and packets out.
             for i, brain in enumerate(self.brains):
@@ -237,8 +244,10 @@ class HeadlessSwarm:
                     progress(t, sc.duration_s)
                 if self._all_settled():
                     settled_since = t if settled_since is None else settled_since
+                    # Never stop before a scheduled shape change, removal or fault.
                     if t - settled_since >= sc.settle_hold_s and t - last_change >= \
-                            sc.settle_hold_s:
+                            sc.settle_hold_s and not (pending_shapes or pending_removals
+                                                      or pending_events):
                         break
                 else:
                     settled_since = None
