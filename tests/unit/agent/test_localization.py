@@ -240,7 +240,7 @@ def test_modes_lost_return_home_and_back():
     np.testing.assert_allclose(loc.home, (5.0, 5.0))
     assert loc.localize(18.0, _beacons(p, 4)) == Mode.NORMAL
     assert loc.missed_localizations == 0
-    assert loc.stats == {'localizations': 2, 'misses': 4, 'rejected': 0}
+    assert loc.stats == {'localizations': 2, 'misses': 4, 'rejected': 0, 'gated': 0}
     np.testing.assert_allclose(loc.position, p, atol=0.2)
 
 
@@ -270,3 +270,26 @@ def test_predict_integrates_the_imu_between_ticks():
         loc.predict(0.1 * k, (0.0, 0.2))
     np.testing.assert_allclose(loc.position, (0.5, 0.5 * 0.2 * 1.0 ** 2), atol=1e-12)
     np.testing.assert_allclose(loc.velocity, (0.5, 0.2), atol=1e-12)
+
+
+def test_mirror_fix_is_gated_and_the_prior_side_chosen():
+    """All beacons to the west of the agent: the ranges also fit the mirror image.
+
+    With its prior the agent keeps the true side (trilateration picks the fit nearer
+    the prior); a fix far outside the filter's uncertainty is gated at most
+    ``max_gated`` times in a row, then accepted (the filter may be the one wrong).
+    """
+    beacons = np.array([[-3.0, 0.5], [-1.0, -2.6], [-3.2, -2.0]])
+    truth = np.array([1.8, -0.75])
+    ranges = np.linalg.norm(beacons - truth, axis=1)
+    fix = trilaterate(beacons, ranges, initial=truth + [0.3, 0.2], range_std=0.3)
+    np.testing.assert_allclose(fix.position, truth, atol=1e-6)
+
+    loc = Localizer(LocalizationConfig(initial_position_std=0.3), truth)
+    far = [(b, r, 0.3) for b, r in zip(beacons, np.linalg.norm(beacons - [-6.0, 6.0], axis=1))]
+    for k in range(loc.config.max_gated):
+        assert loc.localize(3.0 * (k + 1), far) == Mode.NORMAL
+        np.testing.assert_allclose(loc.position, truth, atol=1e-9)
+    assert loc.stats['gated'] == loc.config.max_gated
+    loc.localize(3.0 * (loc.config.max_gated + 1), far)
+    assert np.hypot(*(loc.position - truth)) > 1.0, 'a persistent fix must win in the end'

@@ -167,6 +167,7 @@ class AgentBrain:
         self.neighbours: dict[int, Neighbour] = {}
         self._ranges: list[tuple[int, float, float]] = []
         self._ranges_at = -math.inf
+        self._position_at_ranges = np.asarray(initial_position, float)
         self._outbox: list[Packet] = []
         self._last_t: float | None = None
         self._next_outer = 0.0
@@ -241,6 +242,7 @@ class AgentBrain:
         self._ranges = [(int(b), float(r), float(s)) for b, r, s in ranges
                         if math.isfinite(r) and r >= 0.0 and math.isfinite(s) and s > 0.0]
         self._ranges_at = t
+        self._position_at_ranges = self.localizer.position.copy()
 
     def on_packet(self, t: float, packet: Packet) -> None:
         """A packet heard on the radio: route it, and consume what is for this agent."""
@@ -319,14 +321,22 @@ class AgentBrain:
         """Localization tick (3.1.1, 3.1.3): trilaterate against beacon neighbours."""
         beacons = []
         if t - self._ranges_at <= self.config.range_stale_s:
-            fresh = self._fresh_neighbours(t)
+            self._fresh_neighbours(t)
             for beacon_id, rng_m, std in self._ranges:
-                info = fresh.get(beacon_id)
-                if info is not None and info.is_beacon and info.mode == Mode.NORMAL:
+                heard = self.neighbours.get(beacon_id)
+                if heard is None:
+                    continue
+                info = heard.info
+                if info.is_beacon and info.mode == Mode.NORMAL:
+                    # Where the beacon was when the range was measured: its last
+                    # heartbeat extrapolated with its own velocity estimate.
+                    lag = self._ranges_at - heard.heard_at
+                    where = np.asarray(info.position) + lag * np.asarray(info.velocity)
                     # The beacon's own position uncertainty adds to the range noise.
                     effective = math.hypot(std, info.position_std)
-                    beacons.append((np.asarray(info.position, dtype=float), rng_m, effective))
-        self.localizer.localize(t, beacons)
+                    beacons.append((where, rng_m, effective))
+        self.localizer.localize(t, beacons,
+                                self.localizer.position - self._position_at_ranges)
 
     def _round(self, t: float) -> int:
         return int(math.floor(t / self.config.consensus_period_s + 1e-9))

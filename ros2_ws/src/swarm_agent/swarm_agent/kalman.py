@@ -50,6 +50,16 @@ class KalmanFilter:
         p[:2, :] += dt * p[2:, :]          # F (P F^T)
         self.P = p + self._q
 
+    def innovation_distance(self, z, R) -> float:
+        """Squared Mahalanobis distance of a position fix from the prediction.
+
+        Chi-square with 2 degrees of freedom when the filter and the fix are consistent
+        (99.9 % of consistent fixes fall below 13.8).
+        """
+        s = self.P[:2, :2] + np.asarray(R, float)
+        y = np.asarray(z, float) - self.x[:2]
+        return float(y @ np.linalg.solve(s, y))
+
     def update_position(self, z, R) -> None:
         """Measurement update with a position fix z (2,) of covariance R (eqs. 3.34-3.44)."""
         h = np.hstack([np.eye(2), np.zeros((2, 2))])

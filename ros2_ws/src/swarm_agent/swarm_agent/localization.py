@@ -43,6 +43,8 @@ class LocalizationConfig:
     misses_before_home: int = 3
     initial_position_std: float = 1.0     # m
     max_residual: float = 3.0             # m: worse trilaterations are rejected
+    gate: float = 13.8                    # chi-square (2 dof, 99.9 %) innovation gate
+    max_gated: int = 3                    # after this many gated fixes in a row, accept
 
 
 class Localizer:
@@ -59,7 +61,8 @@ class Localizer:
         self.missed_localizations = 0
         self.home = np.asarray(home if home is not None else initial_position, float)
         self._t: float | None = None
-        self.stats = {'localizations': 0, 'misses': 0, 'rejected': 0}
+        self.stats = {'localizations': 0, 'misses': 0, 'rejected': 0, 'gated': 0}
+        self._gated_in_row = 0
 
     @property
     def position(self) -> np.ndarray:
@@ -85,8 +88,17 @@ class Localizer:
         self.mode = Mode.NORMAL
         self.missed_localizations = 0
 
-    def localize(self, t: float, beacons: Sequence[tuple[np.ndarray, float, float]]) -> Mode:
-        """Localization tick: (beacon position, range, range std) per beacon neighbour."""
+    def localize(self, t: float, beacons: Sequence[tuple[np.ndarray, float, float]],
+                 displacement=(0.0, 0.0)) -> Mode:
+        """Localization tick: (beacon position, range, range std) per beacon neighbour.
+
+        The ranges may be older than the tick (TOA ranging runs at its own rate):
+        ``displacement`` is the agent's own dead-reckoned motion since they were
+        measured, so the fix is solved where the agent was and moved to where it is.
+        Between two fixes the IMU integration drifts by millimetres (3.1.4), while a
+        robot at 0.5 m/s moves a metre in two seconds.
+        """
+        shift = np.asarray(displacement, dtype=float)
         usable = [(np.asarray(p, float), float(r), float(s)) for p, r, s in beacons
                   if np.all(np.isfinite(p)) and np.isfinite(r) and np.isfinite(s) and s > 0]
         if len(usable) >= self.config.min_beacons:
@@ -94,13 +106,24 @@ class Localizer:
             rng = np.array([u[1] for u in usable])
             std = float(np.sqrt(np.mean([u[2] ** 2 for u in usable])))
             try:
-                fix = trilaterate(pos, rng, initial=self.position, range_std=std)
+                fix = trilaterate(pos, rng, initial=self.position - shift, range_std=std)
             except (DegenerateGeometryError, ValueError) as exc:
                 LOG.debug('trilateration rejected: %s', exc)
                 self.stats['rejected'] += 1
             else:
+                z = fix.position + shift
+                if (fix.residual <= self.config.max_residual
+                        and self.kf.innovation_distance(z, fix.covariance) > self.config.gate
+                        and self._gated_in_row < self.config.max_gated):
+                    # A fix far outside the filter's and the fix's own uncertainty (a
+                    # mirror solution, a beacon that moved unannounced): skip it, but
+                    # only a few times in a row, in case the filter is the one wrong.
+                    self._gated_in_row += 1
+                    self.stats['gated'] += 1
+                    return self.mode
                 if fix.residual <= self.config.max_residual:
-                    self.kf.update_position(fix.position, fix.covariance)
+                    self._gated_in_row = 0
+                    self.kf.update_position(z, fix.covariance)
                     self.mode = Mode.NORMAL
                     self.missed_localizations = 0
                     self.stats['localizations'] += 1

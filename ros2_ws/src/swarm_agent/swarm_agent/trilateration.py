@@ -5,7 +5,11 @@ Subtracting the last beacon's range equation from the others linearises the prob
 |p_n|^2. Three beacons give the unique solution, more give least squares (eq. 3.17,
 numpy.linalg.lstsq). Gauss-Newton on the original range residuals (eqs. 3.20-3.27)
 refines the estimate, and starts from the propagated estimate when A is rank
-deficient. Degenerate geometry (coincident or collinear beacons without a prior) raises
+deficient. When all beacons lie to one side of the agent, the ranges fit a mirror
+image of its position almost as well as the position itself and the linear solution
+may land on either; with a prior, Gauss-Newton also starts from it and, between two
+fits equally good within the range noise, the one nearer the prior wins. Degenerate
+geometry (coincident or collinear beacons without a prior) raises
 ``DegenerateGeometryError`` instead of returning garbage.
 """
 
@@ -65,6 +69,10 @@ def gauss_newton(beacons: np.ndarray, ranges: np.ndarray, start: np.ndarray,
     return p
 
 
+def _rms_residual(beacons: np.ndarray, ranges: np.ndarray, p: np.ndarray) -> float:
+    return float(np.sqrt(np.mean((np.linalg.norm(p - beacons, axis=1) - ranges) ** 2)))
+
+
 def trilaterate(beacons, ranges, initial=None, range_std: float = 0.3) -> TrilaterationResult:
     """Position from ranges to >= 3 beacons; see the module docstring."""
     beacons = np.asarray(beacons, dtype=float).reshape(-1, 2)
@@ -89,6 +97,14 @@ def trilaterate(beacons, ranges, initial=None, range_std: float = 0.3) -> Trilat
         method = 'linear' if len(beacons) == 3 else 'least-squares'
         p = gauss_newton(beacons, ranges, p)
         method += '+gauss-newton'
+        if initial is not None:
+            prior = np.asarray(initial, dtype=float)
+            q = gauss_newton(beacons, ranges, prior)
+            rp, rq = _rms_residual(beacons, ranges, p), _rms_residual(beacons, ranges, q)
+            nearer = np.hypot(*(q - prior)) < np.hypot(*(p - prior))
+            if rq < rp - 0.5 * range_std or (nearer and rq <= rp + 0.5 * range_std):
+                p = q
+                method = 'gauss-newton (from prior)'
     diff = p - beacons
     dist = np.maximum(np.linalg.norm(diff, axis=1), 1e-9)
     jac = diff / dist[:, None]
