@@ -1,0 +1,559 @@
+#!/usr/bin/env python3
+"""Fault-injection study of the headless swarm (issue 10): what survives which fault.
+
+Runs the headless evaluator (``swarm_sim.headless``, the same brains, radio medium and
+mission as the ROS system; scenarios built by ``scripts/evaluate.py``) under these
+faults, each over ``--seeds`` seeds:
+
+  loss_P        radio packet loss P % (0, 10, 20, 30, 50) from the start
+  kill_P        P % (10, 30) of the agents killed at random times in the fault window
+  beacons_half  half of the beacons removed at the fault time
+  range_R       radio range cut from 25 m to R m at the fault time (down to a partition)
+  obstacle      a radio-opaque wall sweeping through the formation (links cut, not bodies)
+
+and reports per trial: coverage (``fraction_inside``, share of the final goals with an
+agent of their type within ``GOAL_TOLERANCE_M``, epsilon_t/epsilon_g), agreement of the
+surviving agents (``assignment_agreement`` over the run and after the fault, at the end,
+``duplicate_goal_claims``), recovery time (settling time, eq. 4.1, minus the last fault
+time), collisions (``min_separation_ratio`` over the run and after the fault), and DSDV
+health sampled every 2 s from the brains' route tables: the largest finite hop count
+seen (count-to-infinity would push it to the network size or beyond), next-hop loops,
+finite routes to dead agents, and the true link graph's connected components.
+
+Writes into --out: ``faults.json`` (config, every trial, per-case means), ``faults.md``
+(markdown table) and ``faults.png`` (bars per case).
+
+Example (default: 20 agents, 4 beacons, circle_314, +/-25 m, 2 seeds, about 5 min on
+2 cores):
+  scripts/env.sh python scripts/fault_study.py --out results/faults
+  scripts/env.sh python scripts/fault_study.py --out /tmp/faults --quick
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures as futures
+import json
+import math
+import pathlib
+import sys
+from typing import Any
+
+import evaluate
+import numpy as np
+from scipy.sparse.csgraph import connected_components, minimum_spanning_tree
+from shapely.geometry import box
+
+from swarm_agent.wire import INFINITE_HOPS
+from swarm_mission.partition import PartitionError
+from swarm_mission.robot_types import RobotTypeError
+from swarm_mission.shapes import ShapeError
+from swarm_sim.headless import HeadlessSwarm, Scenario, ScenarioError, TrialRecord
+from swarm_sim.metrics import min_separation_ratio, settling_time
+
+GOAL_TOLERANCE_M = 1.5      # a goal counts as covered by an agent of its type this close
+SAMPLE_EVERY = 4            # route tables sampled every 4th record frame (2 s)
+WALL_THICKNESS_M = 1.0
+LOSSES = (0, 10, 20, 30, 50)
+KILLS = (10, 30)
+RANGES = (12.0, 8.0, 5.0, 3.0)
+MEAN_KEYS = ('fraction_inside', 'goals_covered', 'epsilon_t', 'epsilon_g',
+             'assignment_agreement', 'agreement_after_fault', 'final_agreement',
+             'duplicate_goal_claims', 'settling_time', 'recovery_time', 'settled',
+             'min_separation_ratio', 'min_separation_after_fault', 'max_hops_seen',
+             'routing_loops', 'stale_routes_to_dead', 'max_components_after_fault',
+             'beacons_alive', 'min_beacons_heard', 'final_modes_normal', 'passed',
+             'duration', 'wall_seconds')
+
+
+# ---------------------------------------------------------------------------- cases
+QUICK_CASES = ('loss_0', 'loss_30', 'kill_30', 'beacons_half', 'range_2', 'obstacle')
+
+
+def fault_cases(ranges: tuple[float, ...] = RANGES) -> list[dict[str, Any]]:
+    """The fault cases of the study, in table order."""
+    cases: list[dict[str, Any]] = [{'name': f'loss_{p}', 'kind': 'loss', 'value': p / 100.0}
+                                   for p in LOSSES]
+    cases += [{'name': f'kill_{p}', 'kind': 'kill', 'value': p / 100.0} for p in KILLS]
+    cases.append({'name': 'beacons_half', 'kind': 'beacons', 'value': 0.5})
+    cases += [{'name': f'range_{r:g}', 'kind': 'range', 'value': float(r)} for r in ranges]
+    cases.append({'name': 'obstacle', 'kind': 'obstacle', 'value': 0.0})
+    return cases
+
+
+def _components(swarm: HeadlessSwarm) -> int:
+    """Connected components of the true radio link graph among the living agents."""
+    ids, links = swarm.medium.adjacency()
+    alive = {swarm.ids[i] for i in np.flatnonzero(swarm.alive)}
+    keep = [k for k, a in enumerate(ids) if a in alive]
+    if not keep:
+        return 0
+    return int(connected_components(links[np.ix_(keep, keep)], directed=False)[0])
+
+
+class RouteMonitor:
+    """Samples DSDV health of every living brain (the ``progress`` callback of a run)."""
+
+    def __init__(self, swarm: HeadlessSwarm, fault_time: float) -> None:
+        self.swarm = swarm
+        self.fault_time = fault_time
+        self.calls = 0
+        self.max_hops = 0
+        self.max_hops_vs_size = -math.inf   # max finite hops minus (living agents - 1)
+        self.loops = 0
+        self.max_components_after = 0
+        self.components_timeline: list[tuple[float, int]] = []
+
+    def __call__(self, t: float, duration: float) -> None:
+        """Sample every ``SAMPLE_EVERY``-th record frame."""
+        self.calls += 1
+        if self.calls % SAMPLE_EVERY:
+            return
+        self.sample(t)
+
+    def sample(self, t: float) -> None:
+        """Hop counts, next-hop loops and link-graph components now."""
+        sw = self.swarm
+        n_alive = int(sw.alive.sum())
+        for brain in sw.brains:
+            if brain is None:
+                continue
+            for route in brain.router.routes():
+                if route.hop_count < INFINITE_HOPS:
+                    self.max_hops = max(self.max_hops, route.hop_count)
+                    self.max_hops_vs_size = max(self.max_hops_vs_size,
+                                                route.hop_count - (n_alive - 1))
+        self.loops += count_routing_loops(sw)
+        comps = _components(sw)
+        self.components_timeline.append((t, comps))
+        if t >= self.fault_time:
+            self.max_components_after = max(self.max_components_after, comps)
+
+
+def count_routing_loops(swarm: HeadlessSwarm) -> int:
+    """(source, destination) pairs whose next-hop chain revisits an agent."""
+    routers = {b.router.id: b.router for b in swarm.brains if b is not None}
+    loops = 0
+    for source, router in routers.items():
+        for dest, route in router.table.items():
+            if route.hop_count >= INFINITE_HOPS:
+                continue
+            seen = {source}
+            current = source
+            while current != dest:
+                hop = routers[current].next_hop(dest) if current in routers else None
+                if hop is None:
+                    break
+                if hop in seen:
+                    loops += 1
+                    break
+                seen.add(hop)
+                current = hop
+    return loops
+
+
+def stale_routes_to_dead(swarm: HeadlessSwarm) -> int:
+    """Finite routes held by living agents towards agents that were removed."""
+    dead = {swarm.ids[i] for i in np.flatnonzero(~swarm.alive)}
+    return sum(1 for b in swarm.brains if b is not None
+               for r in b.router.routes() if r.destination in dead
+               and r.hop_count < INFINITE_HOPS)
+
+
+def min_beacons_heard(swarm: HeadlessSwarm) -> int:
+    """Fewest living beacons a living non-beacon agent has as direct radio neighbours."""
+    beacons = {swarm.ids[i] for i in np.flatnonzero(swarm.is_beacon & swarm.alive)}
+    counts = [len(beacons & set(swarm.medium.neighbours(swarm.ids[i])))
+              for i in np.flatnonzero(swarm.alive & ~swarm.is_beacon)]
+    return min(counts) if counts else len(beacons)
+
+
+def critical_range(positions: np.ndarray) -> float:
+    """Longest edge of the Euclidean minimum spanning tree: below it the mesh partitions."""
+    if len(positions) < 2:
+        return 0.0
+    d = np.linalg.norm(positions[:, None] - positions[None], axis=2)
+    return float(minimum_spanning_tree(d).toarray().max())
+
+
+# ---------------------------------------------------------------------------- faults
+def _set_range(range_m: float):
+    def apply(swarm: HeadlessSwarm, t: float) -> None:
+        swarm.medium.config.range_m = range_m
+        swarm.mission.events.append(f't={t:.1f} s: radio range {range_m:g} m')
+    return apply
+
+
+def _place_wall(x: float | None, half_length: float):
+    def apply(swarm: HeadlessSwarm, t: float) -> None:
+        obstacles = list(swarm.scenario.shape.obstacles)
+        if x is not None:
+            obstacles.append(box(x - WALL_THICKNESS_M / 2, -half_length,
+                                 x + WALL_THICKNESS_M / 2, half_length))
+        swarm.medium.set_obstacles(obstacles)
+    return apply
+
+
+def configure_fault(swarm: HeadlessSwarm, case: dict, config: dict, seed: int
+                    ) -> tuple[float, float]:
+    """Schedule the case's fault on a built swarm; return (first, last) fault time."""
+    sc = swarm.scenario
+    kind, value = case['kind'], case['value']
+    t_fault = float(config['fault_time'])
+    rng = np.random.default_rng([seed, 10_007])
+    if kind == 'loss':
+        swarm.medium.set_loss(value)
+        return 0.0, 0.0
+    if kind == 'kill':
+        count = max(1, int(round(value * swarm.n)))
+        victims = rng.choice(swarm.ids, size=count, replace=False)
+        times = np.sort(rng.uniform(t_fault, t_fault + config['fault_window'], size=count))
+        sc.removals = [(float(t), [int(a)]) for t, a in zip(times, victims)]
+        return float(times[0]), float(times[-1])
+    if kind == 'beacons':
+        beacons = [swarm.ids[i] for i in np.flatnonzero(swarm.is_beacon)]
+        count = int(math.ceil(value * len(beacons)))
+        victims = rng.choice(beacons, size=count, replace=False) if count else []
+        sc.removals = [(t_fault, [int(a) for a in victims])]
+        return t_fault, t_fault
+    if kind == 'range':
+        sc.events = [(t_fault, _set_range(value))]
+        return t_fault, t_fault
+    if kind == 'obstacle':
+        # A wall as long as the workspace sweeps across it at wall_speed, then vanishes.
+        half = sc.half_size
+        start, speed = -half, config['wall_speed']
+        sweep = 2.0 * half / speed
+        steps = int(sweep / sc.record_period_s)
+        events = [(t_fault + k * sc.record_period_s,
+                   _place_wall(start + k * sc.record_period_s * speed, half))
+                  for k in range(steps + 1)]
+        end = t_fault + (steps + 1) * sc.record_period_s
+        events.append((end, _place_wall(None, half)))
+        sc.events = events
+        return t_fault, end
+    raise ScenarioError(f'unknown fault kind {kind!r}')
+
+
+# ---------------------------------------------------------------------------- trial
+def build_swarm(case: dict, config: dict, seed: int) -> HeadlessSwarm:
+    """The case's swarm, built by evaluate.build_scenario with the study's settings."""
+    argv = ['--out', '-', '--agents', str(config['agents']), '--beacons',
+            str(config['beacons']), '--shape', config['shape'], '--shape-scale',
+            str(config['shape_scale']), '--duration', str(config['duration']),
+            '--method', config['method']]
+    scenario: Scenario = evaluate.build_scenario(evaluate.parse_args(argv), seed)
+    scenario.half_size = config['half_size']
+    return HeadlessSwarm(scenario)
+
+
+def _agreement(record: TrialRecord, frames: np.ndarray) -> float:
+    """Mean share of assigned NORMAL agents of a type holding the type's usual digest."""
+    shares = []
+    for k in frames:
+        digests, alive, modes = record.digests[k], record.alive[k], record.modes[k]
+        for t in np.unique(record.types):
+            d = digests[alive & (modes == 0) & (digests != 0) & (record.types == t)]
+            if len(d):
+                values, counts = np.unique(d, return_counts=True)
+                shares.append(float(counts.max() / len(d)))
+    return float(np.mean(shares)) if shares else float('nan')
+
+
+def goals_covered(record: TrialRecord) -> float:
+    """Share of the final goals with a living agent of their type within the tolerance."""
+    if not record.goals:
+        return float('nan')
+    final = record.positions[-1]
+    alive = record.alive[-1]
+    covered = 0
+    for goal in record.goals:
+        mine = alive & (record.types == goal.type)
+        if mine.any():
+            d = np.linalg.norm(final[mine] - np.array([goal.x, goal.y]), axis=1)
+            covered += bool(d.min() <= GOAL_TOLERANCE_M)
+    return covered / len(record.goals)
+
+
+def run_case(case: dict, config: dict, seed: int) -> dict[str, Any]:
+    """Run one (case, seed) trial and return its row of the study."""
+    swarm = build_swarm(case, config, seed)
+    first, last = configure_fault(swarm, case, config, seed)
+    monitor = RouteMonitor(swarm, first)
+    record = swarm.run(progress=monitor)
+    monitor.sample(float(record.times[-1]))
+    m = record.metrics
+    radii = {t: r.coverage_radius for t, r in swarm.types.items()}
+    radius = np.array([radii[int(t)] for t in record.types])
+    after = np.flatnonzero(record.times >= first)
+    if len(after) == 0:
+        after = np.array([len(record.times) - 1])
+    alive_now = record.alive[-1]
+    settle = settling_time(record.times, record.positions, record.velocities,
+                           swarm.mission.shape, record.alive)
+    recovery = None if settle is None else max(0.0, settle - last)
+    final_agreement = _agreement(record, np.array([len(record.times) - 1]))
+    beacons_alive = int((swarm.is_beacon & swarm.alive).sum())
+    row: dict[str, Any] = {
+        'case': case['name'], 'kind': case['kind'], 'value': case['value'], 'seed': seed,
+        'fault_time': first, 'last_fault_time': last,
+        'agents': swarm.n, 'agents_alive': int(alive_now.sum()),
+        'fraction_inside': m['fraction_inside'], 'goals_covered': goals_covered(record),
+        'epsilon_t': m['epsilon_t'], 'epsilon_g': m['epsilon_g'],
+        'assignment_agreement': m['assignment_agreement'],
+        'agreement_after_fault': _agreement(record, after),
+        'final_agreement': final_agreement,
+        'duplicate_goal_claims': m['duplicate_goal_claims'],
+        'settling_time': settle, 'settled': settle is not None, 'recovery_time': recovery,
+        'min_separation_ratio': m['min_separation_ratio'],
+        'min_separation_after_fault': min_separation_ratio(
+            record.positions[after][:, alive_now], radius[alive_now]),
+        'max_hops_seen': monitor.max_hops,
+        'count_to_infinity': bool(monitor.max_hops_vs_size > 0),
+        'routing_loops': monitor.loops,
+        'stale_routes_to_dead': stale_routes_to_dead(swarm),
+        'max_components_after_fault': monitor.max_components_after,
+        'final_components': monitor.components_timeline[-1][1],
+        'critical_range_final': critical_range(record.positions[-1][alive_now]),
+        'beacons_alive': beacons_alive, 'min_beacons_heard': min_beacons_heard(swarm),
+        'final_modes_normal': m['final_modes_normal'],
+        'rms_localization_error': m['rms_localization_error'],
+        'medium': m['medium'], 'events': record.events,
+        'duration': m['duration'], 'wall_seconds': m['wall_seconds'],
+    }
+    # The issue's target: nothing lost, coverage restored, while >= 3 beacons reachable.
+    row['target_applies'] = beacons_alive >= 3 and row['min_beacons_heard'] >= 3
+    # Agreement on the assignment means no goal claimed twice and every goal reached;
+    # identical digests (same cost rows) are reported but not required: under loss
+    # agents may hold different row sets and still compute the same assignment.
+    row['passed'] = bool(row['settled'] and row['fraction_inside'] >= 1.0
+                         and row['goals_covered'] >= 1.0
+                         and row['duplicate_goal_claims'] == 0
+                         and not row['count_to_infinity'] and row['routing_loops'] == 0)
+    return row
+
+
+# ---------------------------------------------------------------------------- report
+def summarise(rows: list[dict], cases: list[dict]) -> dict[str, dict[str, Any]]:
+    """Per-case means (None when no seed had a value) and the pass count."""
+    out: dict[str, dict[str, Any]] = {}
+    for case in cases:
+        group = [r for r in rows if r['case'] == case['name']]
+        if not group:
+            continue
+        summary: dict[str, Any] = {'seeds': len(group)}
+        for key in MEAN_KEYS:
+            values = [float(r[key]) for r in group
+                      if r.get(key) is not None and not (isinstance(r[key], float)
+                                                         and math.isnan(r[key]))]
+            summary[key] = float(np.mean(values)) if values else None
+        summary['max_hops_seen'] = max(r['max_hops_seen'] for r in group)
+        summary['count_to_infinity'] = any(r['count_to_infinity'] for r in group)
+        summary['passed'] = sum(r['passed'] for r in group)
+        summary['target_applies'] = sum(r['target_applies'] for r in group)
+        summary['unsettled'] = sum(not r['settled'] for r in group)
+        summary['agents'] = group[0]['agents']
+        out[case['name']] = summary
+    return out
+
+
+def _fmt(value: Any, digits: int = 2) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return 'n/a'
+    if isinstance(value, bool):
+        return 'yes' if value else 'no'
+    if isinstance(value, int):
+        return str(value)
+    return f'{value:.{digits}f}'
+
+
+def markdown_table(summary: dict[str, dict[str, Any]]) -> str:
+    """One row per case: coverage, agreement, recovery, collisions, DSDV, target."""
+    head = ('| Case | inside | goals covered | eps_t | eps_g | agree (after fault) | '
+            'agree (end) | dup claims | settled | recovery [s] | min sep (after fault) | '
+            'max hops / N | loops | components | beacons (min heard) | passed |')
+    lines = [head, '|' + '---|' * (head.count('|') - 1)]
+    for name, s in summary.items():
+        seeds = s['seeds']
+        lines.append(
+            f'| {name} | {_fmt(s["fraction_inside"])} | {_fmt(s["goals_covered"])} | '
+            f'{_fmt(s["epsilon_t"])} | {_fmt(s["epsilon_g"])} | '
+            f'{_fmt(s["agreement_after_fault"], 3)} | {_fmt(s["final_agreement"], 3)} | '
+            f'{_fmt(s["duplicate_goal_claims"], 1)} | {seeds - s["unsettled"]}/{seeds} | '
+            f'{_fmt(s["recovery_time"], 0)} | {_fmt(s["min_separation_ratio"])} '
+            f'({_fmt(s["min_separation_after_fault"])}) | '
+            f'{s["max_hops_seen"]} / {s["agents"]} | {_fmt(s["routing_loops"], 1)} | '
+            f'{_fmt(s["max_components_after_fault"], 1)} | '
+            f'{_fmt(s["beacons_alive"], 1)} ({_fmt(s["min_beacons_heard"], 1)}) | '
+            f'{s["passed"]}/{seeds} |')
+    return '\n'.join(lines) + '\n'
+
+
+def plot(path: pathlib.Path, summary: dict[str, dict[str, Any]]) -> None:
+    """Bars per case: coverage and agreement, recovery time, separation and hops."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    names = list(summary)
+    x = np.arange(len(names))
+
+    def values(key: str) -> np.ndarray:
+        v = np.array([np.nan if summary[n][key] is None else summary[n][key]
+                      for n in names], dtype=float)
+        return np.where(np.isfinite(v), v, np.nan)
+
+    fig, axes = plt.subplots(4, 1, figsize=(max(8.0, 0.8 * len(names)), 11), sharex=True)
+    width = 0.27
+    for k, (key, label) in enumerate((('fraction_inside', 'inside the shape'),
+                                      ('goals_covered', 'goals covered'),
+                                      ('final_agreement', 'assignment agreement (end)'))):
+        axes[0].bar(x + (k - 1) * width, values(key), width, label=label)
+    axes[0].set_ylim(0, 1.05)
+    axes[0].set_ylabel('share')
+    axes[0].legend(loc='lower left', fontsize=8)
+    axes[1].bar(x, values('recovery_time'), color='tab:purple')
+    axes[1].set_ylabel('recovery time [s]\n(settle - last fault)')
+    axes[2].bar(x - width / 2, values('min_separation_ratio'), width, label='whole run')
+    axes[2].bar(x + width / 2, values('min_separation_after_fault'), width,
+                label='after the fault')
+    axes[2].axhline(1.0, color='k', lw=0.8, ls='--')
+    axes[2].set_ylabel('min separation /\n(r_i + r_j)')
+    axes[2].legend(loc='upper left', fontsize=8)
+    axes[3].bar(x - width / 2, values('max_hops_seen'), width, label='max DSDV hops seen')
+    axes[3].bar(x + width / 2, values('max_components_after_fault'), width,
+                label='link-graph components')
+    axes[3].plot(x, values('agents'), 'k_', ms=20, label='agents N')
+    axes[3].legend(loc='upper left', fontsize=8)
+    axes[3].set_xticks(x, names, rotation=30, ha='right')
+    fig.suptitle('Fault study: coverage, agreement, recovery, collisions, routing')
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------------------- main
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--out', required=True, help='results directory')
+    parser.add_argument('--agents', type=int, default=None, help='swarm size (default 20)')
+    parser.add_argument('--beacons', type=int, default=None, help='beacon count (default 4)')
+    parser.add_argument('--seeds', type=int, default=None, help='seeds per case (default 2)')
+    parser.add_argument('--seed', type=int, default=0, help='first seed')
+    parser.add_argument('--workers', type=int, default=2)
+    parser.add_argument('--shape', default='circle_314')
+    parser.add_argument('--shape-scale', type=float, default=None)
+    parser.add_argument('--half-size', type=float, default=None,
+                        help='workspace half size of the random deployment [m]')
+    parser.add_argument('--method', choices=('bubble', 'fractal'), default='bubble')
+    parser.add_argument('--fault-time', type=float, default=None,
+                        help='time of the fault (kills: start of the window) [s]')
+    parser.add_argument('--fault-window', type=float, default=30.0,
+                        help='kills happen at random times in this window [s]')
+    parser.add_argument('--duration', type=float, default=None, help='max simulated s')
+    parser.add_argument('--ranges', type=float, nargs='+', default=None,
+                        help='reduced radio ranges [m] (default 12 8 5 3)')
+    parser.add_argument('--cases', default='', help='comma-separated subset of case names')
+    parser.add_argument('--quick', action='store_true',
+                        help='tiny swarm and short trials (a test, seconds)')
+    return parser.parse_args(argv)
+
+
+def study_config(args: argparse.Namespace) -> dict[str, Any]:
+    """Defaults of the full study, or of --quick, overridden by explicit arguments."""
+    if args.quick:
+        base = {'agents': 6, 'beacons': 4, 'seeds': 1, 'shape_scale': 0.4, 'half_size': 8.0,
+                'fault_time': 25.0, 'duration': 80.0, 'ranges': (2.0,), 'wall_speed': 2.0}
+    else:
+        base = {'agents': 20, 'beacons': 4, 'seeds': 2, 'shape_scale': 1.0,
+                'half_size': 25.0, 'fault_time': 120.0, 'duration': 360.0, 'ranges': RANGES,
+                'wall_speed': 1.0}
+    for key in ('agents', 'beacons', 'seeds', 'shape_scale', 'half_size', 'fault_time',
+                'duration'):
+        if getattr(args, key) is not None:
+            base[key] = getattr(args, key)
+    if args.ranges is not None:
+        base['ranges'] = tuple(args.ranges)
+    base.update(shape=args.shape, method=args.method, fault_window=args.fault_window,
+                seed=args.seed, workers=args.workers, quick=args.quick)
+    if args.quick:
+        base['fault_window'] = min(base['fault_window'], 10.0)
+    return base
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    config = study_config(args)
+    cases = fault_cases(config['ranges'])
+    if args.cases:
+        wanted = set(args.cases.split(','))
+        unknown = wanted - {c['name'] for c in cases}
+        if unknown:
+            print(f'fault_study.py: unknown cases {sorted(unknown)}; known: '
+                  f'{[c["name"] for c in cases]}', file=sys.stderr)
+            return 2
+        cases = [c for c in cases if c['name'] in wanted]
+    elif args.quick:
+        cases = [c for c in cases if c['name'] in QUICK_CASES]
+    try:
+        if config['seeds'] < 1 or config['workers'] < 1:
+            raise ScenarioError('--seeds and --workers must be at least 1')
+        if config['fault_time'] >= config['duration']:
+            raise ScenarioError('--fault-time must be before the end of --duration')
+        build_swarm(cases[0], config, config['seed'])
+    except (ShapeError, ScenarioError, RobotTypeError, PartitionError) as exc:
+        print(f'fault_study.py: {exc}', file=sys.stderr)
+        return 2
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    seeds = [config['seed'] + k for k in range(config['seeds'])]
+    jobs = [(case, seed) for case in cases for seed in seeds]
+    rows: list[dict] = []
+    from tqdm import tqdm
+
+    if config['workers'] == 1:
+        for case, seed in tqdm(jobs, unit='trial', desc='faults'):
+            rows.append(run_case(case, config, seed))
+    else:
+        with futures.ProcessPoolExecutor(max_workers=config['workers']) as pool:
+            pending = [pool.submit(run_case, case, config, seed) for case, seed in jobs]
+            for job in tqdm(futures.as_completed(pending), total=len(pending), unit='trial',
+                            desc='faults'):
+                rows.append(job.result())
+    order = {c['name']: k for k, c in enumerate(cases)}
+    rows.sort(key=lambda r: (order[r['case']], r['seed']))
+    summary = summarise(rows, cases)
+    payload = {'config': config, 'command': ' '.join(['scripts/fault_study.py', *(
+        argv if argv is not None else sys.argv[1:])]), 'cases': summary, 'trials': rows}
+    (out / 'faults.json').write_text(json.dumps(_finite(payload), indent=2,
+                                                default=_json_default), encoding='utf-8')
+    (out / 'faults.md').write_text(markdown_table(summary), encoding='utf-8')
+    plot(out / 'faults.png', summary)
+    print(markdown_table(summary))
+    print(f'fault study: {len(rows)} trials -> {out}')
+    return 0
+
+
+def _finite(value: Any) -> Any:
+    """NaN and infinities as None, so that faults.json is strict JSON."""
+    if isinstance(value, dict):
+        return {str(k): _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    if isinstance(value, (float, np.floating)) and not math.isfinite(value):
+        return None
+    return value
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, (np.integer, np.bool_)):
+        return value.item()
+    if isinstance(value, np.floating):
+        return float(value)
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return str(value)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
