@@ -26,6 +26,8 @@ setup(
         'console_scripts': [
             'bridge_node = swarm_bridge.bridge_node:main',
             'robot_emulator = swarm_bridge.emulator:main',
+            'hil_world_node = swarm_bridge.hil_world_node:main',
+            'hw_agent_node = swarm_bridge.hw_agent_node:main',
         ],
     },
 )

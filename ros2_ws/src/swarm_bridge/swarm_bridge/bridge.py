@@ -28,7 +28,9 @@ class BridgeParams:
     """Timing and limits of the bridge; defaults equal config/bridge.yaml."""
 
     max_speed: float = 0.035
-    cmd_timeout: float = 0.5
+    # agent_node publishes cmd_vel when it changes, at most once per outer period
+    # (0.5 s, thesis 2 Hz): the timeout must span a few periods or moving robots stutter.
+    cmd_timeout: float = 1.5
     pose_timeout: float = 1.0
     resend_period: float = 0.1
     board_timeout: float = 1.0

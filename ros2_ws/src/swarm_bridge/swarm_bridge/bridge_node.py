@@ -37,7 +37,8 @@ PARAMETERS = {
     'fleet_file': ('', 'Fleet YAML mapping agent ids to XBee addresses (default: package)'),
     'agents': ('', 'Comma-separated agent ids to bridge (default: the whole fleet)'),
     'max_speed': (0.035, 'Robot speed limit, m/s (<= fastest wheel speed: no clipping)'),
-    'cmd_timeout': (0.5, 'Seconds without cmd_vel before the robot is sent STOP'),
+    'cmd_timeout': (1.5, 'Seconds without cmd_vel before the robot is sent STOP (agents '
+                         'publish on change, every 0.5 s at most)'),
     'pose_timeout': (1.0, 'Seconds without a camera pose before the robot is sent STOP'),
     'resend_period': (0.1, 'Seconds between repeated commands (board watchdog: 0.5 s)'),
     'board_timeout': (1.0, 'Seconds without status or ack before a board counts as silent'),
@@ -149,9 +150,13 @@ class BridgeNode(Node):
         self._log_events()
 
     def _log_events(self) -> None:
+        # One call site per severity: rclpy refuses to change a call site's severity
+        # ('Logger severity cannot be changed between calls'), which crashed the node.
         for event in self.bridge.take_events():
-            log = self.get_logger()
-            (log.warning if event.level == 'warn' else log.info)(event.text)
+            if event.level == 'warn':
+                self.get_logger().warning(event.text)
+            else:
+                self.get_logger().info(event.text)
 
     # -- outputs -----------------------------------------------------------------------
     def _publish_wheels(self, agent: int) -> None:

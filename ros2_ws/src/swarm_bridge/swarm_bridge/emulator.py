@@ -4,7 +4,10 @@ without hardware.
 - :class:`EmulatedBoard` is a Python twin of the firmware (firmware/src/robot.c): it
   receives escaped 0x90 frames, mixes CmdVel with the fixed-point mixer (eqs. 5.1-5.3,
   bit-exact with the C), acknowledges, stops its wheels SWP_CMD_TIMEOUT_MS after the last
-  valid command and sends a status every SWP_HEARTBEAT_MS, as 0x10 frames.
+  valid command and sends a status every SWP_HEARTBEAT_MS, as 0x10 frames. Every
+  half-step a wheel takes moves the robot: the board integrates the forward kinematics
+  of eqs. 5.1-5.3 (:func:`step_displacement`) into a map-frame pose, which is what the
+  overhead camera of thesis 5.1 sees (:mod:`swarm_bridge.hil_world_node` publishes it).
 - :class:`EmulatedRadio` stands for the XBee network: it takes the host's 0x10 frames,
   delivers them to the board with that 64-bit address (0x8B status 0x24 when there is
   none, 0x21 when the board is powered off), and hands boards' frames to the host as
@@ -19,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import dataclass, field
+import math
 import os
 import select
 import sys
@@ -29,6 +33,28 @@ from swarm_bridge import protocol, xbee
 from swarm_bridge.fleet import load_fleet
 
 FIRMWARE_MAX_FRAME_DATA = 32   # SWP_MAX_FRAME_DATA
+BASE_RADIUS_M = 0.06           # wheel contact to robot centre (assumed: the thesis names none)
+
+
+def step_displacement(wheel: int, direction: int,
+                      base_radius: float = BASE_RADIUS_M) -> tuple[float, float, float]:
+    """Body-frame motion (dx forward m, dy left m, dyaw rad CCW) of one half-step.
+
+    Forward kinematics of eqs. 5.1-5.3: the body velocity is the least-squares inverse
+    ``(2/3) sum V_i d_i`` (protocol.body_velocity_from_wheels), so one half-step of wheel
+    ``i`` (a surface travel of 1/HALF_STEPS_PER_M) moves the body by 2/3 of it along the
+    wheel's drive direction d_i. The drive directions are tangential and 120 degrees
+    apart, so the wheels' mean travel turns the body: ``dyaw = -travel / (3 r)`` (a
+    positive wheel speed drives clockwise; with eqs. 5.1-5.3 the three terms cancel and
+    only step quantisation turns the robot, by a bounded amount).
+    """
+    travel = direction / protocol.HALF_STEPS_PER_M
+    phi = math.radians(protocol.WHEEL_PHI[wheel])
+    return (2.0 / 3.0 * travel * math.cos(phi), -2.0 / 3.0 * travel * math.sin(phi),
+            -travel / (3.0 * base_radius))
+
+
+_STEPS = {(w, d): step_displacement(w, d) for w in range(3) for d in (1, -1)}
 
 
 @dataclass
@@ -45,6 +71,9 @@ class EmulatedBoard:
     last_cmd_seq: int = 0
     status_seq: int = 0
     commands: int = 0
+    x: float = 0.0                 # map-frame pose (m, m, rad CCW): the camera's view
+    y: float = 0.0
+    yaw: float = 0.0
     _acc: list[int] = field(default_factory=lambda: [0, 0, 0])
     _heartbeat_ms: int = 0
     _running: bool = False
@@ -126,7 +155,24 @@ class EmulatedBoard:
                     self._acc[i] += abs(rate)
                     if self._acc[i] >= protocol.TICK_HZ:
                         self._acc[i] -= protocol.TICK_HZ
-                        self.positions[i] += 1 if rate > 0 else -1
+                        self._step(i, 1 if rate > 0 else -1)
+
+    def _step(self, wheel: int, direction: int) -> None:
+        """One half-step of ``wheel``: count it and move the body (step_displacement)."""
+        self.positions[wheel] += direction
+        dx, dy, dyaw = _STEPS[(wheel, direction)]
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        self.x += c * dx - s * dy
+        self.y += s * dx + c * dy
+        self.yaw = math.remainder(self.yaw + dyaw, math.tau)
+
+    def place(self, x: float, y: float, yaw: float) -> None:
+        """Put the robot at a map-frame pose (m, m, rad counter-clockwise)."""
+        self.x, self.y, self.yaw = float(x), float(y), float(yaw)
+
+    def pose(self) -> tuple[float, float, float]:
+        """The robot's map-frame pose (x m, y m, yaw rad CCW), as the camera sees it."""
+        return self.x, self.y, self.yaw
 
     def _heartbeat(self) -> None:
         stats = self._parser.stats

@@ -1,0 +1,149 @@
+"""hil_world_node: the hardware of thesis ch. 5 without hardware (hardware in the loop).
+
+Stands for everything outside the software under test:
+
+- the robots and their coordinator XBee: an :class:`~swarm_bridge.emulator.EmulatedRadio`
+  of firmware twins on a pseudo-terminal (bridge_node's ``port``; the node links the pty
+  to ``port_link`` so a launcher knows it before starting the bridge). Each board
+  integrates its own half-steps into a pose (forward kinematics of eqs. 5.1-5.3);
+- the overhead E/O camera of thesis 5.1: publishes every robot's pose as
+  ``/agent_K/pose`` (geometry_msgs/PoseStamped, map frame, yaw counter-clockwise) at
+  ``camera_rate_hz``, optionally with Gaussian noise (``camera_noise_m``, seeded);
+- the XBee mesh between the agents (Fig. 5.1): in a 2 x 2 m arena every radio hears
+  every other, so a frame on ``/radio/tx`` is delivered on ``/agent_K/radio/rx`` of its
+  destination, or of every other agent when broadcast.
+
+Initial poses come from ``initial_poses`` (flat list x0,y0,yaw0,x1,... in fleet order,
+yaw in degrees counter-clockwise). Parameters: PARAMETERS below, defaults equal to
+config/hil.yaml. Runs on the wall clock, as real robots do.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import pathlib
+import sys
+import time
+
+from geometry_msgs.msg import PoseStamped
+import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+
+from swarm_bridge.emulator import EmulatedRadio, PtyEmulator
+from swarm_bridge.fleet import load_fleet
+from swarm_mission import qos
+from swarm_msgs.msg import RadioPacket
+
+PARAMETERS = {
+    'fleet_file': ('', 'Fleet YAML (default: the package config/fleet.yaml)'),
+    'port_link': ('', 'Symlink created to the pty for bridge_node (empty: none)'),
+    'initial_poses': ([0.0], 'x,y,yaw_deg per robot in fleet order (default: a row)'),
+    'camera_rate_hz': (10.0, 'Rate of the overhead camera poses'),
+    'camera_noise_m': (0.0, 'Standard deviation of the camera position noise, m'),
+    'camera_seed': (0, 'Seed of the camera noise'),
+    'pump_period': (0.005, 'Seconds between serial transfers and board time steps'),
+    'relay_radio': (True, 'Deliver /radio/tx frames to every agent (XBee mesh in range)'),
+}
+BROADCAST = 0xFFFF
+
+
+def initial_poses(flat: list[float], count: int) -> list[tuple[float, float, float]]:
+    """Poses (x m, y m, yaw rad CCW) from the flat parameter list; a row when empty."""
+    if len(flat) <= 1:
+        return [(-0.8 + 0.4 * i, -0.8, 0.0) for i in range(count)]
+    if len(flat) != 3 * count:
+        raise ValueError(f'initial_poses holds {len(flat)} numbers; give x,y,yaw_deg for '
+                         f'each of the {count} robots ({3 * count} numbers)')
+    return [(flat[3 * i], flat[3 * i + 1], math.radians(flat[3 * i + 2]))
+            for i in range(count)]
+
+
+class HilWorldNode(Node):
+    """Emulated robots, camera and mesh radio; see the module docstring."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__('hil_world', **kwargs)
+        for name, (default, text) in PARAMETERS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(description=text))
+        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        self.params = p
+        self.robots = load_fleet(p['fleet_file'] or None)
+        self.emulator = PtyEmulator(EmulatedRadio.for_fleet([r.address for r in self.robots]))
+        self.boards = {r.agent_id: self.emulator.radio.boards[r.address] for r in self.robots}
+        poses = initial_poses([float(v) for v in p['initial_poses']], len(self.robots))
+        for robot, pose in zip(self.robots, poses):
+            self.boards[robot.agent_id].place(*pose)
+        self._link = pathlib.Path(p['port_link']) if p['port_link'] else None
+        if self._link is not None:
+            self._link.unlink(missing_ok=True)
+            self._link.symlink_to(self.emulator.port)
+        self._rng = np.random.default_rng(p['camera_seed'])
+        sensor, radio = QoSProfile(**qos.SENSOR), QoSProfile(**qos.RADIO)
+        self._pose_pubs = {k: self.create_publisher(PoseStamped, f'/agent_{k}/pose', sensor)
+                           for k in self.boards}
+        self._rx_pubs = {k: self.create_publisher(RadioPacket, f'/agent_{k}/radio/rx', radio)
+                         for k in self.boards}
+        if p['relay_radio']:
+            self.create_subscription(RadioPacket, '/radio/tx', self._on_tx, radio)
+        self.create_timer(p['pump_period'], self._pump)
+        self.create_timer(1.0 / p['camera_rate_hz'], self._camera)
+        self.get_logger().info(f'{len(self.robots)} emulated robots on {self.emulator.port}'
+                               + (f' (linked at {self._link})' if self._link else ''))
+
+    def _pump(self) -> None:
+        self.emulator.pump(time.monotonic())
+
+    def _camera(self) -> None:
+        stamp = self.get_clock().now().to_msg()
+        noise = self.params['camera_noise_m']
+        for k, board in self.boards.items():
+            x, y, yaw = board.pose()
+            if noise > 0.0:
+                x, y = np.array([x, y]) + self._rng.normal(0.0, noise, 2)
+            msg = PoseStamped()
+            msg.header.stamp = stamp
+            msg.header.frame_id = 'map'
+            msg.pose.position.x, msg.pose.position.y = float(x), float(y)
+            msg.pose.orientation.z = math.sin(yaw / 2.0)
+            msg.pose.orientation.w = math.cos(yaw / 2.0)
+            self._pose_pubs[k].publish(msg)
+
+    def _on_tx(self, msg: RadioPacket) -> None:
+        if msg.source not in self.boards:
+            return
+        for k, pub in self._rx_pubs.items():
+            if k != msg.source and msg.destination in (BROADCAST, k):
+                pub.publish(msg)
+
+    def close(self) -> None:
+        """Remove the pty link and close the pty."""
+        if self._link is not None and self._link.is_symlink():
+            self._link.unlink(missing_ok=True)
+        self.emulator.close()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run hil_world_node until interrupted."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = HilWorldNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    os.environ.setdefault('PYTHONUNBUFFERED', '1')
+    sys.exit(main())
