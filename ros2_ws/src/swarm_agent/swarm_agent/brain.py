@@ -292,6 +292,16 @@ class AgentBrain:
             assignment_digest=self.assignment_digest, rows_used=self.rows_used,
             settled=self.settled)
 
+    def status_line(self) -> str:
+        """One line for logs: mode, estimate, fixes, neighbourhood and assignment."""
+        loc = self.localizer
+        beacons = sorted(k for k, n in self.neighbours.items() if n.info.is_beacon)
+        return (f'mode {loc.mode.name} at ({loc.position[0]:.2f}, {loc.position[1]:.2f}); '
+                f'fixes {loc.stats}; neighbours {len(self.neighbours)}, beacons heard '
+                f'{beacons}, ranges {len(self._ranges)}; goal {self.goal_id} '
+                f'(v{self.goal_version}, {self.rows_used} rows); mesh {self.stats}; '
+                f'router {self.router.stats}')
+
     @property
     def settled(self) -> bool:
         """Inside the shape (own estimate) and slower than the settling speed (eq. 4.1)."""

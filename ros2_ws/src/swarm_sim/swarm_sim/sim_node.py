@@ -1,10 +1,16 @@
 """sim_node: the simulated world of the swarm (replaces the thesis's Gazebo, 4.1).
 
 Owns the clock and steps the physics at ``physics_rate_hz``, paced to
-``real_time_factor`` (0: as fast as possible). Robots come from the fleet file, obstacles
-from the shape spec (``swarm_mission.shapes.load_shape``), physics from a backend:
-``pybullet`` (``swarm_sim.world``, rough terrain, rigid bodies) when available, else the
-``pointmass`` model shared with the headless evaluator.
+``real_time_factor`` (0: as fast as possible) and never more than ``max_agent_lag_s``
+of sim time ahead of the slowest living agent (the stamp of its last force command):
+a closed loop whose controllers fall behind the plant is not the system under test.
+It waits up to ``wait_for_agents_s`` (wall) for every robot's first command, and an
+agent silent for ``agent_stall_s`` (wall) is no longer waited for.
+
+Robots come from the fleet file, obstacles from the shape spec
+(``swarm_mission.shapes.load_shape``), physics from a backend: ``pybullet``
+(``swarm_sim.world``, rough terrain, rigid bodies) when available, else the ``pointmass``
+model shared with the headless evaluator.
 
 Topics
   published  ``/clock`` (rosgraph_msgs/Clock)
@@ -66,6 +72,9 @@ PARAMETERS = {
     'truth_rate_hz': (2.0, 'Ground-truth publication rate (sim time)'),
     'marker_rate_hz': (1.0, 'RViz marker rate (sim time)'),
     'command_timeout_s': (0.5, 'Force commands older than this are dropped to zero'),
+    'max_agent_lag_s': (0.2, 'Sim time the world may run ahead of the slowest agent; 0: off'),
+    'wait_for_agents_s': (60.0, "Wall seconds to wait for every robot's first command"),
+    'agent_stall_s': (2.0, 'Wall seconds after which a silent agent is not waited for'),
     'max_force': (50.0, 'Force commands are clamped to this magnitude (N)'),
     'loss': (0.0, 'Radio packet loss probability (settable at run time)'),
     'half_size': (50.0, 'Workspace half width (m)'),
@@ -149,6 +158,9 @@ class SimNode(Node):
         self.alive = np.ones(self.n, dtype=bool)
         self.forces = np.zeros((self.n, 2))
         self.force_time = np.full(self.n, -math.inf)
+        self.force_stamp = np.full(self.n, -math.inf)   # agent clock of its last command
+        self.force_wall = np.full(self.n, -math.inf)    # wall time it arrived
+        self._started_wall = time.monotonic()
         self._warned: set[int] = set()
         self.dt = 1.0 / p['physics_rate_hz']
         self.step_count = 0
@@ -212,6 +224,9 @@ class SimNode(Node):
             f *= self.params['max_force'] / norm
         self.forces[i] = f
         self.force_time[i] = self.t
+        stamp = msg.header.stamp
+        self.force_stamp[i] = stamp.sec + stamp.nanosec * 1e-9
+        self.force_wall[i] = time.monotonic()
 
     def _on_tx(self, msg: RadioPacket) -> None:
         if msg.source in self.index:
@@ -248,10 +263,31 @@ class SimNode(Node):
             steps = max(0, min(steps, 50))
         else:
             steps = 10
+        steps = min(steps, self._steps_agents_allow())
         for _ in range(steps):
             self._physics_step()
         if steps:
             self._publish_outputs()
+        else:
+            # Held for a slow agent: keep the clock ticking at the same time, so that
+            # late-starting nodes learn it and fire their timers.
+            self.clock_pub.publish(Clock(clock=self._stamp()))
+
+    def _steps_agents_allow(self) -> int:
+        """Physics steps possible without running ahead of the slowest living agent."""
+        lag = float(self.params['max_agent_lag_s'])
+        if lag <= 0.0:
+            return 1 << 30
+        wall = time.monotonic()
+        # Robots not heard yet count as standing at t = 0 while the start-up window
+        # lasts: the world waits at ``lag`` for their controllers to come up.
+        silent = ~np.isfinite(self.force_stamp)
+        starting = silent & (wall - self._started_wall < self.params['wait_for_agents_s'])
+        waited = self.alive & (starting | (wall - self.force_wall < self.params['agent_stall_s']))
+        if not waited.any():
+            return 1 << 30
+        slowest = float(np.where(silent, 0.0, self.force_stamp)[waited].min())
+        return max(0, int((slowest + lag - self.t) / self.dt + 1e-9))
 
     def _physics_step(self) -> None:
         stale = self.t - self.force_time > self.params['command_timeout_s']
