@@ -37,12 +37,23 @@ void fw_reset(void)
     robot_init();
 }
 
-/* Feed n received bytes, as the main loop would drain the receive buffer. */
+/* Feed n received bytes, each through the receive interrupt followed by a main-loop
+ * pass (which empties the mailbox as soon as a frame is complete). */
 void fw_feed(const uint8_t *data, uint32_t n)
 {
     uint32_t i;
     for (i = 0; i < n; i++) {
-        robot_rx_byte(data[i]);
+        robot_rx_isr(data[i]);
+        robot_poll();
+    }
+}
+
+/* Feed n bytes through the receive interrupt only: a main loop that is busy elsewhere. */
+void fw_feed_isr(const uint8_t *data, uint32_t n)
+{
+    uint32_t i;
+    for (i = 0; i < n; i++) {
+        robot_rx_isr(data[i]);
     }
 }
 

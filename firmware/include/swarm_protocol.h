@@ -32,8 +32,11 @@
 #define SWP_DELIVERY_NO_ACK       0x21  /* network ACK failure: the board did not answer */
 #define SWP_DELIVERY_NOT_FOUND    0x24  /* address not found                             */
 
-/* Largest frame data the firmware buffers; longer frames are dropped and counted. */
-#define SWP_MAX_FRAME_DATA        32
+/* Largest frame data the firmware accepts: a 0x90 header and the longest message it
+ * receives (CMD_VEL); longer frames are dropped and counted as oversize. The parser
+ * keeps only frame data bytes 0..8 (type, source address) and the message.          */
+#define SWP_MAX_MSG_IN            6
+#define SWP_MAX_FRAME_DATA        18    /* SWP_RX_HEADER_LEN + SWP_MAX_MSG_IN          */
 
 /* ---- Robot messages (RF data of 0x10 / 0x90 frames) -------------------------------- */
 /* byte 0: message type, byte 1: sequence number; lengths are exact.                   */

@@ -1,7 +1,9 @@
 /* hal_pic16f690.c - the thin PIC16F690 layer: clocks, EUSART, Timer2, pins, main loop.
  *
  * Internal oscillator 8 MHz (2 MIPS). EUSART 9600 baud 8N1 on RB5 (RX) / RB7 (TX),
- * interrupt-driven receive into a 16-byte ring. Timer2 interrupts at SWP_TICK_HZ
+ * interrupt-driven receive: the interrupt parses each byte (robot_rx_isr) into a one-frame
+ * mailbox that the main loop empties (robot_poll), so no receive ring is needed and a
+ * main loop blocked sending a status loses no bytes. Timer2 interrupts at SWP_TICK_HZ
  * (8 MHz / 4 / prescale 4 / (PR2 + 1 = 125) / postscale 4 = 1 kHz) and runs robot_tick().
  * ULN2003 inputs: motor A on RC0-RC3, motor B on RC4-RC7, motor C on RA0 RA1 RA2 RA4.
  * The hardware watchdog (about 2.1 s) resets the chip if the main loop hangs.
@@ -56,11 +58,6 @@ static __code uint16_t __at(0x2007) config_word = 0x33EC;
 #define OERR 0x02
 #define FERR 0x04
 #define CREN 0x10
-#define RING_SIZE 16 /* power of two */
-
-static volatile uint8_t ring[RING_SIZE];
-static volatile uint8_t ring_head; /* written by the interrupt */
-static uint8_t ring_tail;          /* written by the main loop */
 static uint8_t porta_shadow;
 static uint8_t portc_shadow;
 
@@ -97,7 +94,6 @@ void hal_coils(uint8_t ch, uint8_t pattern)
 
 static void isr(void) __interrupt 0
 {
-    uint8_t next;
     if (PIR1 & RCIF) {
         if (RCSTA & (OERR | FERR)) {
             robot_uart_error();
@@ -106,13 +102,7 @@ static void isr(void) __interrupt 0
                 RCSTA |= CREN;
             }
         }
-        next = (ring_head + 1) & (RING_SIZE - 1);
-        ring[ring_head] = RCREG;
-        if (next != ring_tail) {
-            ring_head = next;
-        } else {
-            robot_uart_error(); /* ring full: the byte is dropped */
-        }
+        robot_rx_isr(RCREG);
     }
     if (PIR1 & TMR2IF) {
         PIR1 &= (uint8_t)~TMR2IF;
@@ -122,7 +112,6 @@ static void isr(void) __interrupt 0
 
 void main(void)
 {
-    uint8_t byte;
     OSCCON = 0x71;            /* IRCF = 111: 8 MHz, internal clock */
     ANSEL = 0;                /* all pins digital */
     ANSELH = 0;
@@ -145,11 +134,6 @@ void main(void)
         __asm
             clrwdt
         __endasm;
-        while (ring_tail != ring_head) {
-            byte = ring[ring_tail];
-            ring_tail = (ring_tail + 1) & (RING_SIZE - 1);
-            robot_rx_byte(byte);
-        }
         robot_poll();
     }
 }

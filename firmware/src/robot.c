@@ -85,51 +85,59 @@ static void apply(uint8_t run)
     HAL_CRITICAL_END();
 }
 
+/* Main loop: take the frame out of the parser's mailbox, then act on it. The mailbox
+ * is released before anything is sent, so the interrupt can parse the next frame
+ * while the (blocking) acknowledgement goes out. */
 static void handle_frame(void)
 {
-    uint8_t *msg = &xp.buf[SWP_RX_HEADER_LEN];
     uint8_t len;
     uint8_t i;
+    uint8_t type;
+    uint8_t seq;
     uint16_t speed;
     uint16_t alpha;
     if (xp.buf[0] != SWP_API_RX_PACKET || xp.length < SWP_RX_HEADER_LEN + 2) {
+        xp.ready = 0;
         return; /* modem status, transmit status, or no message: nothing to do */
     }
     len = xp.length - SWP_RX_HEADER_LEN;
     for (i = 0; i < 8; i++) {
         robot.host[i] = xp.buf[1 + i]; /* answer whoever commands us */
     }
-    if (msg[0] == SWP_MSG_CMD_VEL) {
+    type = xp.buf[XP_MSG];
+    seq = xp.buf[XP_MSG + 1];
+    speed = ((uint16_t)xp.buf[XP_MSG + 2] << 8) | xp.buf[XP_MSG + 3];
+    alpha = ((uint16_t)xp.buf[XP_MSG + 4] << 8) | xp.buf[XP_MSG + 5];
+    xp.ready = 0;
+    if (type == SWP_MSG_CMD_VEL) {
         if (len != SWP_LEN_CMD_VEL) {
             set_fault(SWP_FAULT_BAD_MSG);
-            send_ack(msg[1], msg[0], SWP_ACK_BAD_LENGTH);
+            send_ack(seq, type, SWP_ACK_BAD_LENGTH);
             return;
         }
-        speed = ((uint16_t)msg[2] << 8) | msg[3];
-        alpha = ((uint16_t)msg[4] << 8) | msg[5];
         if (alpha >= SWP_DIRECTION_FULL_TURN) {
             set_fault(SWP_FAULT_BAD_MSG);
-            send_ack(msg[1], msg[0], SWP_ACK_BAD_VALUE);
+            send_ack(seq, type, SWP_ACK_BAD_VALUE);
             return;
         }
         if (mixer_mix(speed, alpha)) {
             set_fault(SWP_FAULT_RATE_LIMIT);
         }
         apply(1);
-    } else if (msg[0] == SWP_MSG_STOP) {
+    } else if (type == SWP_MSG_STOP) {
         if (len != SWP_LEN_STOP) {
             set_fault(SWP_FAULT_BAD_MSG);
-            send_ack(msg[1], msg[0], SWP_ACK_BAD_LENGTH);
+            send_ack(seq, type, SWP_ACK_BAD_LENGTH);
             return;
         }
         apply(0);
     } else {
         set_fault(SWP_FAULT_BAD_MSG);
-        send_ack(msg[1], msg[0], SWP_ACK_UNKNOWN_TYPE);
+        send_ack(seq, type, SWP_ACK_UNKNOWN_TYPE);
         return;
     }
-    robot.last_cmd_seq = msg[1];
-    send_ack(msg[1], msg[0], SWP_ACK_OK);
+    robot.last_cmd_seq = seq;
+    send_ack(seq, type, SWP_ACK_OK);
 }
 
 void robot_init(void)
@@ -154,13 +162,12 @@ void robot_init(void)
     }
 }
 
-void robot_rx_byte(uint8_t byte)
+void robot_rx_isr(uint8_t byte)
 {
-    uint8_t bad = (uint8_t)(xp.bad_checksums + xp.truncated + xp.oversize);
-    if (xp_feed(byte)) {
-        handle_frame();
-    } else if ((uint8_t)(xp.bad_checksums + xp.truncated + xp.oversize) != bad) {
-        set_fault(SWP_FAULT_BAD_FRAME);
+    uint8_t bad = (uint8_t)(xp.bad_checksums + xp.truncated + xp.oversize + xp.busy);
+    xp_feed(byte);
+    if ((uint8_t)(xp.bad_checksums + xp.truncated + xp.oversize + xp.busy) != bad) {
+        robot.faults |= SWP_FAULT_BAD_FRAME;
     }
 }
 
@@ -171,9 +178,11 @@ void robot_uart_error(void)
 
 void robot_poll(void)
 {
-    uint8_t i;
     uint16_t age;
     uint8_t faults;
+    if (xp.ready) {
+        handle_frame();
+    }
     if (!robot.heartbeat_due) {
         return;
     }
@@ -182,10 +191,14 @@ void robot_poll(void)
     age = robot.cmd_age_ms;
     faults = robot.faults;
     robot.faults &= SWP_FAULT_STICKY;
-    for (i = 0; i < 3; i++) {
-        robot.tx[5 + 2 * i] = (uint8_t)((uint16_t)st_rate[i] >> 8);
-        robot.tx[6 + 2 * i] = (uint8_t)st_rate[i];
-    }
+    /* unrolled: a variable index into 16-bit arrays costs the PIC14 a library multiply
+     * and its RAM */
+    robot.tx[5] = (uint8_t)((uint16_t)st_rate[0] >> 8);
+    robot.tx[6] = (uint8_t)st_rate[0];
+    robot.tx[7] = (uint8_t)((uint16_t)st_rate[1] >> 8);
+    robot.tx[8] = (uint8_t)st_rate[1];
+    robot.tx[9] = (uint8_t)((uint16_t)st_rate[2] >> 8);
+    robot.tx[10] = (uint8_t)st_rate[2];
     HAL_CRITICAL_END();
     robot.tx[0] = SWP_MSG_STATUS;
     robot.tx[1] = robot.status_seq++;
@@ -193,7 +206,7 @@ void robot_poll(void)
     robot.tx[3] = (uint8_t)(age >> 8);
     robot.tx[4] = (uint8_t)age;
     robot.tx[11] = faults;
-    robot.tx[12] = (uint8_t)(xp.bad_checksums + xp.truncated + xp.oversize);
+    robot.tx[12] = (uint8_t)(xp.bad_checksums + xp.truncated + xp.oversize + xp.busy);
     send_payload(SWP_LEN_STATUS);
 }
 

@@ -1,7 +1,9 @@
 /* robot.h - the board's application: commands, watchdog, heartbeats (hardware independent).
  *
- * Contexts: robot_tick() runs in the timer interrupt; every other function runs in the
- * main loop. State shared by both is only changed by the main loop under HAL_CRITICAL.
+ * Contexts: robot_tick() runs in the timer interrupt, robot_rx_isr() in the receive
+ * interrupt (it parses frames into the parser's one-frame mailbox, xbee_parser.h);
+ * robot_init() and robot_poll() run in the main loop, which changes state shared with
+ * the interrupts only under HAL_CRITICAL.
  */
 #ifndef ROBOT_H
 #define ROBOT_H
@@ -25,9 +27,9 @@ typedef struct {
 extern robot_t robot;
 
 void robot_init(void);
-/* Main loop: one received UART byte (parses, handles complete frames, answers). */
-void robot_rx_byte(uint8_t byte);
-/* Main loop: send the heartbeat when due. */
+/* Receive interrupt: one UART byte into the frame parser (no sending, no mixing). */
+void robot_rx_isr(uint8_t byte);
+/* Main loop: handle the frame in the mailbox (mix, answer), send the heartbeat when due. */
 void robot_poll(void);
 /* Timer interrupt, SWP_TICK_HZ: command watchdog, heartbeat timer, step timing, coils. */
 void robot_tick(void);

@@ -2,6 +2,7 @@
  *
  * A raw 0x7E always starts a new frame (in mode 2 it cannot occur inside one), so the
  * parser resynchronises on garbage, truncated frames and bad checksums by itself.
+ * Runs in the receive interrupt (hal_pic16f690.c); see xbee_parser.h for the mailbox.
  */
 #include "xbee_parser.h"
 
@@ -57,6 +58,9 @@ uint8_t xp_feed(uint8_t byte)
         if (byte == 0 || byte > SWP_MAX_FRAME_DATA) {
             xp.oversize++;
             xp.state = XP_WAIT_START;
+        } else if (xp.ready) {
+            xp.busy++;               /* the main loop has not taken the last frame */
+            xp.state = XP_WAIT_START;
         } else {
             xp.length = byte;
             xp.index = 0;
@@ -65,7 +69,11 @@ uint8_t xp_feed(uint8_t byte)
         }
         break;
     case XP_DATA:
-        xp.buf[xp.index] = byte;
+        if (xp.index < XP_KEEP_HEAD) {
+            xp.buf[xp.index] = byte;
+        } else if (xp.index >= SWP_RX_HEADER_LEN) {
+            xp.buf[xp.index - (SWP_RX_HEADER_LEN - XP_KEEP_HEAD)] = byte;
+        }
         xp.index++;
         xp.sum += byte;
         if (xp.index == xp.length) {
@@ -76,6 +84,7 @@ uint8_t xp_feed(uint8_t byte)
         xp.state = XP_WAIT_START;
         if ((uint8_t)(xp.sum + byte) == SWP_XBEE_CHECKSUM_OK) {
             xp.frames++;
+            xp.ready = 1;
             return 1;
         }
         xp.bad_checksums++;

@@ -18,13 +18,16 @@ def main() -> int:
             r'^\s*(\S+)\s+(code|udata|idata|udata_ovr|udata_acs|udata_shr|data)\s+'
             r'(0x[0-9a-f]+)\s+(program|data)\s+(0x[0-9a-f]+)', text, re.M | re.I):
         n = int(size, 16)
+        if location.lower() == 'data' and int(_addr, 16) & 0x7F < 0x20:
+            continue  # special function registers declared by address (__sfr __at): no RAM
         if location.lower() == 'program':
             if name.lower() not in ('config', 'config_word', '__config_0x2007'):
                 flash += n // 2
         else:
             ram += n
     print(f'flash: {flash} of {flash_total} words ({100.0 * flash / flash_total:.1f} %)')
-    print(f'RAM:   {ram} of {ram_total} bytes ({100.0 * ram / ram_total:.1f} %)')
+    print(f'RAM:   {ram} of {ram_total} bytes ({100.0 * ram / ram_total:.1f} %; general '
+          'purpose registers only, SFRs excluded)')
     return 0 if flash <= flash_total and ram <= ram_total else 1
 
 

@@ -27,8 +27,10 @@ class Firmware:
         self.coils = (ctypes.c_uint8 * 3).in_dll(self.lib, 'host_coils')
         self.tx = (ctypes.c_uint8 * 8192).in_dll(self.lib, 'host_tx')
         self.tx_len = ctypes.c_uint32.in_dll(self.lib, 'host_tx_len')
-        # xbee_parser_t: state escaped length index sum buf[32] frames bad truncated oversize
-        self.parser = (ctypes.c_uint8 * 42).in_dll(self.lib, 'xp')
+        self.lib.fw_feed_isr.argtypes = [ctypes.c_char_p, ctypes.c_uint32]
+        # xbee_parser_t: frames bad_checksums truncated oversize garbage busy state escaped
+        # length index sum ready buf[...] (counters first, xbee_parser.h)
+        self.parser = (ctypes.c_uint8 * 12).in_dll(self.lib, 'xp')
 
     def reset(self) -> None:
         """Power-up state."""
@@ -37,6 +39,14 @@ class Firmware:
     def feed(self, data: bytes) -> None:
         """Bytes on the board's UART."""
         self.lib.fw_feed(bytes(data), len(data))
+
+    def feed_isr(self, data: bytes) -> None:
+        """Bytes through the receive interrupt only (the main loop does not run)."""
+        self.lib.fw_feed_isr(bytes(data), len(data))
+
+    def poll(self) -> None:
+        """One main-loop pass: empties the mailbox, sends a due heartbeat."""
+        self.lib.robot_poll()
 
     def ticks(self, n: int) -> None:
         """n timer ticks of 1 ms, each followed by a main-loop poll."""
@@ -50,9 +60,12 @@ class Firmware:
 
     def parser_counters(self) -> dict[str, int]:
         """The C parser's counters (modulo 256)."""
-        base = 5 + 32
-        names = ('frames', 'bad_checksums', 'truncated', 'oversize', 'garbage')
-        return {n: self.parser[base + i] for i, n in enumerate(names)}
+        names = ('frames', 'bad_checksums', 'truncated', 'oversize', 'garbage', 'busy')
+        return {n: self.parser[i] for i, n in enumerate(names)}
+
+    def mailbox_full(self) -> bool:
+        """Whether the parser's mailbox holds a frame the main loop has not taken."""
+        return bool(self.parser[11])
 
 
 @pytest.fixture(scope='session')

@@ -34,7 +34,7 @@ def test_wheels_follow_the_kinematics_then_the_agent_watchdog_stops_them():
     for got, want in zip(board.wheel_speeds(), protocol.wheel_speeds(speed, alpha)):
         assert abs(got - want) < 2e-4
     assert bridge.links[1].status.rates == tuple(board.rates)
-    t = run(bridge, radio, t, 1.0, agent=None)   # the agent stops publishing
+    t = run(bridge, radio, t, 2.0, agent=1, yaw=yaw)   # cmd_vel stops (1.5 s), poses go on
     assert board.rates == [0, 0, 0] and bridge.counters['watchdog_stops'] == 1
     assert any('stopped publishing cmd_vel' in e.text for e in bridge.take_events())
 

@@ -102,7 +102,7 @@ def test_c_parser_and_python_decoder_agree_on_any_stream(firmware, chunks, data)
     firmware.reset()
     firmware.take_tx()
     firmware.feed(bytes(stream))
-    py = xbee.FrameDecoder(max_frame_data=32)
+    py = xbee.FrameDecoder(max_frame_data=18)   # SWP_MAX_FRAME_DATA
     frames = py.feed(bytes(stream))
     counters = firmware.parser_counters()
     assert counters['frames'] == len(frames) % 256
@@ -166,3 +166,28 @@ def test_bad_messages_are_refused_with_a_reason(firmware):
     assert [a.result for a in acks] == [protocol.ACK_BAD_LENGTH, protocol.ACK_BAD_VALUE,
                                         protocol.ACK_UNKNOWN_TYPE]
     assert not any(firmware.rates)
+
+
+def test_frames_are_parsed_in_the_interrupt_and_handed_over_through_a_mailbox(firmware):
+    """The receive interrupt parses; the main loop takes one frame at a time. A frame
+    finished while the main loop has not taken the previous one is dropped, counted as
+    busy and reported as a bad frame; the next one after the hand-over is applied."""
+    firmware.reset()
+    firmware.take_tx()
+    first = command_frame(protocol.CmdVel(1, 200, 45))
+    second = command_frame(protocol.CmdVel(2, 300, 90))
+    firmware.feed_isr(first)
+    assert firmware.mailbox_full() and not any(firmware.rates)   # main loop not yet run
+    firmware.feed_isr(second)                                     # mailbox still full
+    assert firmware.parser_counters()['busy'] == 1
+    firmware.poll()
+    assert not firmware.mailbox_full()
+    assert tuple(firmware.rates) == protocol.mix_fixed(200, 45)[0]
+    acks = [m for _, m in board_messages(firmware.take_tx()) if isinstance(m, protocol.Ack)]
+    assert [(a.seq, a.result) for a in acks] == [(1, protocol.ACK_OK)]
+    firmware.feed_isr(second)
+    firmware.poll()
+    assert tuple(firmware.rates) == protocol.mix_fixed(300, 90)[0]
+    firmware.ticks(protocol.HEARTBEAT_MS)
+    status = [m for _, m in board_messages(firmware.take_tx()) if isinstance(m, protocol.Status)]
+    assert status and status[-1].faults & protocol.FAULT_BAD_FRAME and status[-1].bad_frames == 1

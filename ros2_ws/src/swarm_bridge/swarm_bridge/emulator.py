@@ -32,7 +32,7 @@ import tty
 from swarm_bridge import protocol, xbee
 from swarm_bridge.fleet import load_fleet
 
-FIRMWARE_MAX_FRAME_DATA = 32   # SWP_MAX_FRAME_DATA
+FIRMWARE_MAX_FRAME_DATA = 18   # SWP_MAX_FRAME_DATA
 BASE_RADIUS_M = 0.06           # wheel contact to robot centre (assumed: the thesis names none)
 
 
