@@ -70,11 +70,11 @@ class Localizer:
 
     @property
     def velocity(self) -> np.ndarray:
-        return self.kf.x[2:]
+        return self.kf.x[2:4]
 
     @property
     def covariance(self) -> np.ndarray:
-        return self.kf.P
+        return self.kf.P[:4, :4]
 
     def predict(self, t: float, accel) -> None:
         """IMU sample at time ``t`` (map-frame acceleration, m/s^2)."""
