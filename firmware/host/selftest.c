@@ -19,17 +19,34 @@ static int failures;
 
 int main(void)
 {
-    /* 0x90 frame from 0013A20040A1B2C3: CMD_VEL seq 7, speed 300 (30 mm/s), alpha 90 deg */
-    uint8_t frame[] = { 0x7E, 0x00, 0x12, 0x90, 0x00, 0x13, 0xA2, 0x00, 0x40, 0xA1, 0xB2,
-                        0xC3, 0xFF, 0xFE, 0x01, 0x01, 0x07, 0x01, 0x2C, 0x00, 0x5A, 0x00 };
+    /* 0x90 frame from 0013A20040A1B2C3: CMD_VEL seq 7, speed 300 (30 mm/s), alpha 90 deg.
+     * The frame data holds 0x13 (XOFF), which API mode 2 escapes on the wire. */
+    const uint8_t data[] = { 0x90, 0x00, 0x13, 0xA2, 0x00, 0x40, 0xA1, 0xB2, 0xC3, 0xFF,
+                             0xFE, 0x01, 0x01, 0x07, 0x01, 0x2C, 0x00, 0x5A };
+    uint8_t frame[2 * sizeof(data) + 8];
+    uint8_t n = 0;
     uint8_t i;
     uint8_t sum = 0;
-    for (i = 3; i < sizeof(frame) - 1; i++) {
-        sum += frame[i];
+    uint8_t b;
+    frame[n++] = SWP_XBEE_START;
+    frame[n++] = 0x00;
+    frame[n++] = (uint8_t)sizeof(data);
+    for (i = 0; i <= sizeof(data); i++) {
+        if (i < sizeof(data)) {
+            b = data[i];
+            sum += b;
+        } else {
+            b = (uint8_t)(0xFF - sum);
+        }
+        if (b == SWP_XBEE_START || b == SWP_XBEE_ESCAPE || b == SWP_XBEE_XON
+            || b == SWP_XBEE_XOFF) {
+            frame[n++] = SWP_XBEE_ESCAPE;
+            b ^= SWP_XBEE_ESCAPE_XOR;
+        }
+        frame[n++] = b;
     }
-    frame[sizeof(frame) - 1] = (uint8_t)(0xFF - sum);
     fw_reset();
-    fw_feed(frame, sizeof(frame));
+    fw_feed(frame, n);
     CHECK(xp.frames == 1);
     CHECK(robot.last_cmd_seq == 7);
     /* alpha = 90: V_A = v cos(60) = 150 units, V_B = v cos(-60) = 150, V_C = v cos(180) */

@@ -1,7 +1,9 @@
 /* xbee_parser.c - streaming XBee API mode 2 frame parser.
  *
  * A raw 0x7E always starts a new frame (in mode 2 it cannot occur inside one), so the
- * parser resynchronises on garbage, truncated frames and bad checksums by itself.
+ * parser resynchronises on garbage, truncated frames and bad checksums by itself. A raw
+ * XON/XOFF inside a frame, or an escape of an ordinary byte, is a corrupted escape
+ * sequence: the frame is dropped and counted with the garbage (no RAM for a counter).
  * Runs in the receive interrupt (hal_pic16f690.c); see xbee_parser.h for the mailbox.
  */
 #include "xbee_parser.h"
@@ -44,6 +46,16 @@ uint8_t xp_feed(uint8_t byte)
     if (xp.escaped) {
         byte ^= SWP_XBEE_ESCAPE_XOR;
         xp.escaped = 0;
+        if (byte != SWP_XBEE_START && byte != SWP_XBEE_ESCAPE && byte != SWP_XBEE_XON
+            && byte != SWP_XBEE_XOFF) {
+            xp.garbage++;            /* only the four special bytes are ever escaped */
+            xp.state = XP_WAIT_START;
+            return 0;
+        }
+    } else if (byte == SWP_XBEE_XON || byte == SWP_XBEE_XOFF) {
+        xp.garbage++;                /* never raw inside a mode 2 frame: corrupted   */
+        xp.state = XP_WAIT_START;
+        return 0;
     }
     switch (xp.state) {
     case XP_LEN_HI:

@@ -22,7 +22,7 @@ typedef struct {
     uint8_t bad_checksums;
     uint8_t truncated;    /* a start delimiter arrived inside a frame             */
     uint8_t oversize;     /* announced length 0 or above SWP_MAX_FRAME_DATA       */
-    uint8_t garbage;      /* bytes outside any frame                              */
+    uint8_t garbage;      /* bytes outside any frame, and corrupted escapes       */
     uint8_t busy;         /* frames dropped: the mailbox still held the previous  */
     uint8_t state;        /* XP_* below                                          */
     uint8_t escaped;      /* previous byte was SWP_XBEE_ESCAPE                    */

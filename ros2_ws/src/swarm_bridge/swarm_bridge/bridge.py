@@ -147,7 +147,7 @@ class Bridge:
 
     def _note_decoder(self) -> None:
         stats = self.decoder.stats
-        for name in ('bad_checksums', 'truncated', 'oversize', 'garbage_bytes'):
+        for name in ('bad_checksums', 'truncated', 'oversize', 'garbage_bytes', 'bad_escapes'):
             delta = getattr(stats, name) - getattr(self._seen, name)
             if delta:
                 self.counters[name] += delta

@@ -88,6 +88,7 @@ class DecoderStats:
     truncated: int = 0
     oversize: int = 0
     garbage_bytes: int = 0
+    bad_escapes: int = 0   # raw XON/XOFF inside a frame, or an escape of an ordinary byte
 
 
 @dataclass
@@ -130,6 +131,17 @@ class FrameDecoder:
         if self._escaped:
             byte ^= ESCAPE_XOR
             self._escaped = False
+            if byte not in NEEDS_ESCAPE:
+                # Only the four special bytes are ever escaped: a corrupted stream.
+                self.stats.bad_escapes += 1
+                self._state = 'start'
+                return None
+        elif byte in (XON, XOFF):
+            # API mode 2 never sends XON/XOFF raw inside a frame (a UART would take them
+            # for flow control): this is a corrupted escape sequence; drop the frame.
+            self.stats.bad_escapes += 1
+            self._state = 'start'
+            return None
         if self._state == 'len_hi':
             self._length, self._state = byte << 8, 'len_lo'
         elif self._state == 'len_lo':
