@@ -6,7 +6,7 @@ Subscribed
   ``imu`` (sensor_msgs/Imu)                    accelerometer, map frame -> Kalman prediction
   ``gps`` (geometry_msgs/PoseWithCovarianceStamped)  absolute fix, beacons only
   ``ranges`` (swarm_msgs/RangeArray)           TOA ranges to beacon neighbours
-  ``radio/rx`` (swarm_msgs/RadioPacket)        what this robot's radio heard
+  ``radio/rx`` (swarm_msgs/RadioPacketArray)   what this robot's radio heard (batches)
   ``pose`` (geometry_msgs/PoseStamped)         external (camera) pose, hardware mode only
   ``/swarm/shape`` (swarm_msgs/FormationShape) desired shape (transient local)
   ``/swarm/goals`` (swarm_msgs/GoalArray)      goal states (transient local)
@@ -53,6 +53,7 @@ from swarm_msgs.msg import (
     FormationShape,
     GoalArray,
     RadioPacket,
+    RadioPacketArray,
     RangeArray,
     RouteTable,
 )
@@ -100,6 +101,7 @@ class AgentNode(Node):
             external_pose=p['external_pose'])
         self._type_counts = p['type_counts']
         self._last_setpoint: tuple[float, float] | None = None
+        self._radio_lag_max = 0.0  # s: worst delay from the medium to this callback
 
         latched, sensor, radio, state = (
             QoSProfile(**profile) for profile in (qos.LATCHED, qos.SENSOR, qos.RADIO, qos.STATE))
@@ -112,7 +114,7 @@ class AgentNode(Node):
         self.create_subscription(Imu, 'imu', self._on_imu, sensor)
         self.create_subscription(PoseWithCovarianceStamped, 'gps', self._on_gps, sensor)
         self.create_subscription(RangeArray, 'ranges', self._on_ranges, sensor)
-        self.create_subscription(RadioPacket, 'radio/rx', self._on_radio, radio)
+        self.create_subscription(RadioPacketArray, 'radio/rx', self._on_radio, radio)
         self.create_subscription(PoseStamped, 'pose', self._on_pose, sensor)
         self.create_subscription(FormationShape, '/swarm/shape', self._on_shape, latched)
         self.create_subscription(GoalArray, '/swarm/goals', self._on_goals, latched)
@@ -155,8 +157,13 @@ class AgentNode(Node):
         self.brain.on_ranges(self._now(),
                              [(r.beacon_id, r.range, r.stddev) for r in msg.ranges])
 
-    def _on_radio(self, msg: RadioPacket) -> None:
-        self.brain.on_packet(self._now(), packet_from_msg(msg))
+    def _on_radio(self, msg: RadioPacketArray) -> None:
+        now = self._now()
+        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        if stamp > 0.0:
+            self._radio_lag_max = max(self._radio_lag_max, now - stamp)
+        for packet in msg.packets:
+            self.brain.on_packet(now, packet_from_msg(packet))
 
     def _on_shape(self, msg: FormationShape) -> None:
         try:
@@ -210,7 +217,9 @@ class AgentNode(Node):
                                            self.brain.router.routes(), stamp))
 
     def _log_status(self) -> None:
-        self.get_logger().info(self.brain.status_line())
+        self.get_logger().info(f'{self.brain.status_line()}; radio lag max '
+                               f'{self._radio_lag_max:.2f} s')
+        self._radio_lag_max = 0.0
 
     def stop(self) -> None:
         """Command zero force and velocity (on shutdown)."""

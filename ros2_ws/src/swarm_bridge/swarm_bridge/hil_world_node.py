@@ -37,7 +37,7 @@ from rclpy.qos import QoSProfile
 from swarm_bridge.emulator import EmulatedRadio, PtyEmulator
 from swarm_bridge.fleet import load_fleet
 from swarm_mission import qos
-from swarm_msgs.msg import RadioPacket
+from swarm_msgs.msg import RadioPacket, RadioPacketArray
 
 PARAMETERS = {
     'fleet_file': ('', 'Fleet YAML (default: the package config/fleet.yaml)'),
@@ -86,7 +86,8 @@ class HilWorldNode(Node):
         sensor, radio = QoSProfile(**qos.SENSOR), QoSProfile(**qos.RADIO)
         self._pose_pubs = {k: self.create_publisher(PoseStamped, f'/agent_{k}/pose', sensor)
                            for k in self.boards}
-        self._rx_pubs = {k: self.create_publisher(RadioPacket, f'/agent_{k}/radio/rx', radio)
+        self._rx_pubs = {k: self.create_publisher(RadioPacketArray, f'/agent_{k}/radio/rx',
+                                                  radio)
                          for k in self.boards}
         if p['relay_radio']:
             self.create_subscription(RadioPacket, '/radio/tx', self._on_tx, radio)
@@ -118,7 +119,9 @@ class HilWorldNode(Node):
             return
         for k, pub in self._rx_pubs.items():
             if k != msg.source and msg.destination in (BROADCAST, k):
-                pub.publish(msg)
+                batch = RadioPacketArray(packets=[msg])  # a real link delivers frame by frame
+                batch.header.stamp = msg.header.stamp
+                pub.publish(batch)
 
     def close(self) -> None:
         """Remove the pty link and close the pty."""

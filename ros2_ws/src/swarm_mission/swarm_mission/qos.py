@@ -18,7 +18,7 @@ LATCHED = {'history': KEEP_LAST, 'depth': 1, 'reliability': RELIABLE,
 SENSOR = {'history': KEEP_LAST, 'depth': 5, 'reliability': BEST_EFFORT,
           'durability': VOLATILE}
 # Radio frames: the medium model decides what is lost, DDS must not add losses.
-RADIO = {'history': KEEP_LAST, 'depth': 200, 'reliability': RELIABLE,
+RADIO = {'history': KEEP_LAST, 'depth': 1000, 'reliability': RELIABLE,
          'durability': VOLATILE}
 # Introspection (state, routes, truth): reliable, shallow.
 STATE = {'history': KEEP_LAST, 'depth': 10, 'reliability': RELIABLE,

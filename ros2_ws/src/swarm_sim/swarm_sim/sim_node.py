@@ -17,7 +17,8 @@ Topics
              ``/agent_K/imu`` (sensor_msgs/Imu, map-frame acceleration with bias + noise)
              ``/agent_K/gps`` (geometry_msgs/PoseWithCovarianceStamped, beacons only)
              ``/agent_K/ranges`` (swarm_msgs/RangeArray, TOA ranges to beacon neighbours)
-             ``/agent_K/radio/rx`` (swarm_msgs/RadioPacket, what the medium delivers)
+             ``/agent_K/radio/rx`` (swarm_msgs/RadioPacketArray, what the medium
+             delivered to the robot since the last batch, ``radio_rate_hz``)
              ``/swarm/truth`` (swarm_msgs/SwarmTruth, for metrics only)
              ``/swarm/markers`` (visualization_msgs/MarkerArray, for RViz)
   subscribed ``/agent_K/cmd_force`` (geometry_msgs/WrenchStamped, N, map frame)
@@ -53,7 +54,14 @@ from swarm_agent.conversions import packet_from_msg, packet_to_msg
 from swarm_mission import qos
 from swarm_mission.robot_types import load_robot_types
 from swarm_mission.shapes import load_shape, ShapeError
-from swarm_msgs.msg import AgentTruth, RadioPacket, RangeArray, RangeMeasurement, SwarmTruth
+from swarm_msgs.msg import (
+    AgentTruth,
+    RadioPacket,
+    RadioPacketArray,
+    RangeArray,
+    RangeMeasurement,
+    SwarmTruth,
+)
 from swarm_sim.fleet import FleetError, load_fleet
 from swarm_sim.medium import MediumConfig, RadioMedium
 from swarm_sim.sensors import GpsModel, ImuModel
@@ -64,11 +72,12 @@ PARAMETERS = {
     'backend': ('auto', 'Physics: pybullet, pointmass, or auto (pybullet if available)'),
     'physics_rate_hz': (100.0, 'Physics steps per simulated second'),
     'real_time_factor': (1.0, 'Target sim/wall speed ratio; 0 runs as fast as possible'),
-    'clock_rate_hz': (100.0, 'Wall-clock rate of /clock updates and stepping batches'),
+    'clock_rate_hz': (50.0, 'Wall-clock rate of /clock updates and stepping batches'),
     'imu_rate_hz': (10.0, 'IMU samples per simulated second'),
     'gps_rate_hz': (1.0, 'Beacon GPS fixes per simulated second'),
     'gps_std': (2.0, 'GPS noise per axis (m), thesis 4.2'),
     'range_rate_hz': (1.0, 'TOA ranging rate per simulated second'),
+    'radio_rate_hz': (20.0, 'Radio delivery batches per simulated second, per robot'),
     'truth_rate_hz': (2.0, 'Ground-truth publication rate (sim time)'),
     'marker_rate_hz': (1.0, 'RViz marker rate (sim time)'),
     'command_timeout_s': (0.5, 'Force commands older than this are dropped to zero'),
@@ -165,7 +174,8 @@ class SimNode(Node):
         self.dt = 1.0 / p['physics_rate_hz']
         self.step_count = 0
         self.t = 0.0
-        self._due = {k: 0.0 for k in ('imu', 'gps', 'range', 'truth', 'marker')}
+        self._due = {k: 0.0 for k in ('imu', 'gps', 'range', 'radio', 'truth', 'marker')}
+        self._rx_batches: dict[int, list[RadioPacket]] = {}
         self._record = None
         if p['record_dir']:
             path = pathlib.Path(p['record_dir'])
@@ -182,7 +192,8 @@ class SimNode(Node):
             ns = f'/agent_{r.id}'
             self.imu_pubs[r.id] = self.create_publisher(Imu, f'{ns}/imu', sensor)
             self.range_pubs[r.id] = self.create_publisher(RangeArray, f'{ns}/ranges', sensor)
-            self.rx_pubs[r.id] = self.create_publisher(RadioPacket, f'{ns}/radio/rx', radio)
+            self.rx_pubs[r.id] = self.create_publisher(RadioPacketArray, f'{ns}/radio/rx',
+                                                       radio)
             if r.is_beacon:
                 self.gps_pubs[r.id] = self.create_publisher(PoseWithCovarianceStamped,
                                                             f'{ns}/gps', sensor)
@@ -315,9 +326,14 @@ class SimNode(Node):
         stamp = self._stamp()
         self.clock_pub.publish(Clock(clock=stamp))
         for receiver, packet in self.medium.deliver(self.t):
-            pub = self.rx_pubs.get(receiver)
-            if pub is not None:
-                pub.publish(packet_to_msg(packet, stamp))
+            if receiver in self.rx_pubs:
+                self._rx_batches.setdefault(receiver, []).append(packet_to_msg(packet, stamp))
+        if self._due_now('radio', 'radio_rate_hz'):
+            for receiver, packets in self._rx_batches.items():
+                batch = RadioPacketArray(packets=packets)
+                batch.header.stamp = stamp
+                self.rx_pubs[receiver].publish(batch)
+            self._rx_batches = {}
         pos = self.backend.positions()
         if self._due_now('imu', 'imu_rate_hz'):
             # A real IMU reports the mean acceleration over its sample interval (it
