@@ -175,6 +175,7 @@ class AgentBrain:
         self._setpoint = np.zeros(2)
         self._force = np.zeros(2)
         self._parked = False
+        self._parked_goal: tuple[int, int] = (-1, -1)   # (goal version, goal id)
         # Shape and goals
         self.shape: Shape | None = None
         self.shape_version = 0
@@ -385,9 +386,16 @@ class AgentBrain:
         target = np.array([goal.x, goal.y])
         distance = float(np.hypot(*(target - position)))
         # Hysteresis around the goal: do not chase localization noise (the estimate
-        # jumps by a few decimetres at every trilateration); park and brake instead.
-        if distance < self.config.hold_radius or (
-                self._parked and distance < self.config.resume_radius):
+        # jumps by a few decimetres at every trilateration); park and brake instead. A
+        # parked agent moves again only when the goal is farther than the resume radius
+        # by two standard deviations of its own position estimate, or its goal changed.
+        cov = self.localizer.covariance
+        sigma = math.sqrt(max(0.5 * (cov[0, 0] + cov[1, 1]), 0.0))
+        resume = self.config.resume_radius + 2.0 * sigma
+        if (self.goal_version, goal.id) != self._parked_goal:
+            self._parked = False
+        if distance < self.config.hold_radius or (self._parked and distance < resume):
+            self._parked_goal = (self.goal_version, goal.id)
             self._park()
             return
         self._parked = False
