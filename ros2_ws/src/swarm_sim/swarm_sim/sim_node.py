@@ -83,7 +83,7 @@ PARAMETERS = {
     'command_timeout_s': (0.5, 'Force commands older than this are dropped to zero'),
     'max_agent_lag_s': (0.2, 'Sim time the world may run ahead of the slowest agent; 0: off'),
     'wait_for_agents_s': (60.0, "Wall seconds to wait for every robot's first command"),
-    'agent_stall_s': (2.0, 'Wall seconds after which a silent agent is not waited for'),
+    'agent_stall_s': (10.0, 'Wall seconds after which a silent agent is not waited for'),
     'max_force': (50.0, 'Force commands are clamped to this magnitude (N)'),
     'loss': (0.0, 'Radio packet loss probability (settable at run time)'),
     'half_size': (50.0, 'Workspace half width (m)'),
