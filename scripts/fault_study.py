@@ -350,7 +350,7 @@ def run_case(case: dict, config: dict, seed: int) -> dict[str, Any]:
 
 # ---------------------------------------------------------------------------- report
 def summarise(rows: list[dict], cases: list[dict]) -> dict[str, dict[str, Any]]:
-    """Per-case means (None when no seed had a value) and the pass count."""
+    """Per-case means (None when no seed had a value), worst separations, pass counts."""
     out: dict[str, dict[str, Any]] = {}
     for case in cases:
         group = [r for r in rows if r['case'] == case['name']]
@@ -362,6 +362,10 @@ def summarise(rows: list[dict], cases: list[dict]) -> dict[str, dict[str, Any]]:
                       if r.get(key) is not None and not (isinstance(r[key], float)
                                                          and math.isnan(r[key]))]
             summary[key] = float(np.mean(values)) if values else None
+        for key in ('min_separation_ratio', 'min_separation_after_fault'):
+            # The worst seed; None (in faults.json) is inf: no pair within 3 r_max.
+            summary[key] = min(math.inf if r[key] is None else float(r[key])
+                               for r in group)
         summary['max_hops_seen'] = max(r['max_hops_seen'] for r in group)
         summary['count_to_infinity'] = any(r['count_to_infinity'] for r in group)
         summary['passed'] = sum(r['passed'] for r in group)

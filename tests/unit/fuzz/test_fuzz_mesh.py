@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import pathlib
+import struct
 
 from hypothesis import example, given, HealthCheck, settings
 from hypothesis import strategies as st
@@ -145,7 +146,9 @@ def _payload_for(kind: int) -> st.SearchStrategy[bytes]:
 
 
 packet_fields = st.tuples(
-    st.one_of(st.integers(0, 12), st.integers(-5, 0x1FFFF)),           # source
+    # Sources as swarm_msgs/RadioPacket (uint16) delivers them; wider ones crash the
+    # router (test_corpus_dsdv_source_outside_uint16 below).
+    st.one_of(st.integers(0, 12), U16),                                 # source
     st.one_of(st.sampled_from([ME, BROADCAST]), st.integers(-5, 0x1FFFF)),  # destination
     st.one_of(st.integers(0, 5), st.integers(-3, 300)),                # kind
     st.integers(-5, 0x1FFFF),                                          # sequence
@@ -273,3 +276,18 @@ def test_corpus_dsdv_sequence_poisoning_heals():
     routers[1].on_packet(10.0, _packet(case['packet']))
     run(10.0, 40.0)
     assert routers[1].next_hop(3) == 2, 'route to C never recovers'
+
+
+@pytest.mark.xfail(strict=True, raises=struct.error,
+                   reason='dsdv.py accepts a source address outside 0..0xFFFF as a neighbour; '
+                   'every later tick() then raises struct.error in wire.encode_adverts '
+                   '(reported, issue 10)')
+@pytest.mark.parametrize('source', [-1, 0x10000])
+def test_corpus_dsdv_source_outside_uint16(source):
+    """A heartbeat from an address no radio can have must be dropped, not crash later."""
+    fields = dict(_corpus('dsdv_source_outside_uint16.json')['packet'], source=source)
+    router = DsdvRouter(ME)
+    router.on_packet(0.0, _packet(fields))
+    router.tick(0.0)
+    router.tick(2.0)
+    assert source not in router.table
