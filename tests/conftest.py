@@ -15,6 +15,7 @@ import signal
 import subprocess
 import sys
 
+from hypothesis import settings
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
@@ -26,6 +27,11 @@ for _pkg in sorted((ROOT / 'ros2_ws' / 'src').glob('swarm_*')):
         sys.path.insert(0, str(_pkg))
 sys.path.insert(0, str(ROOT / 'scripts'))
 _domain_counter = itertools.count()
+
+# Property tests assert behaviour, not speed: no per-example deadline (a loaded CI
+# machine made the 200 ms default flaky). Speed is measured by benchmarks/.
+settings.register_profile('swarm', deadline=None)
+settings.load_profile('swarm')
 
 
 def _next_domain_id() -> int:

@@ -324,3 +324,17 @@ def test_bias_state_keeps_a_long_run_consistent():
     assert 1.0 < nees[True] < 3.5, nees  # mean of 12 chi-square(2): 2 +- 0.6
     assert nees[False] > 1.3 * nees[True], nees
     assert max(r[1] for r in runs[True]) < 0.5 * 0.1 * MG
+
+
+def test_set_state_replaces_the_estimate_for_camera_poses():
+    """Hardware: a camera pose and its displacement are the estimate (no IMU)."""
+    loc = Localizer(LocalizationConfig(), (0.0, 0.0))
+    loc.localize(3.0, [])
+    assert loc.mode == Mode.LOST
+    loc.set_state((1.0, 2.0), (0.1, 0.0), 0.01, 0.04)
+    np.testing.assert_allclose(loc.position, (1.0, 2.0))
+    np.testing.assert_allclose(loc.velocity, (0.1, 0.0))
+    np.testing.assert_allclose(np.diag(loc.covariance), [1e-4, 1e-4, 1.6e-3, 1.6e-3])
+    assert loc.mode == Mode.NORMAL
+    loc.gps_update(3.5, (1.02, 2.0), 0.01)   # and the filter still takes fixes
+    assert abs(loc.position[0] - 1.01) < 1e-3

@@ -82,6 +82,25 @@ class Localizer:
             self.kf.predict(t - self._t, accel)
         self._t = t
 
+    def set_state(self, position, velocity, position_std: float,
+                  velocity_std: float) -> None:
+        """Overwrite the estimate with a direct measurement of it (hardware: camera poses).
+
+        Without an IMU there is no prediction step; the overhead camera measures the
+        position to about a centimetre and its displacement gives the velocity.
+        """
+        kf = self.kf
+        kf.x = np.zeros_like(kf.x)
+        kf.x[:2] = np.asarray(position, float)
+        kf.x[2:4] = np.asarray(velocity, float)
+        variances = np.zeros(len(kf.x))
+        variances[:2] = position_std ** 2
+        variances[2:4] = velocity_std ** 2
+        variances[4:] = kf.P.diagonal()[4:]
+        kf.P = np.diag(variances)
+        self.mode = Mode.NORMAL
+        self.missed_localizations = 0
+
     def gps_update(self, t: float, position, std: float) -> None:
         """Absolute fix (beacons; camera poses on hardware)."""
         self.kf.update_position(position, np.eye(2) * std ** 2)

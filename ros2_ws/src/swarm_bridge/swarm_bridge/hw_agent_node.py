@@ -81,11 +81,7 @@ class HwAgentNode(AgentNode):
         t0, x0, y0 = self._poses[0]
         velocity = (np.array([x - x0, y - y0]) / (t - t0)) if t - t0 > 1e-3 else np.zeros(2)
         std = self.params['external_pose_std']
-        localizer = self.brain.localizer
-        localizer.gps_update(t, np.array([x, y]), std)   # mode NORMAL, bookkeeping
-        localizer.kf.x = np.array([x, y, velocity[0], velocity[1]])
-        localizer.kf.P = np.diag([std ** 2, std ** 2, (2 * std / self._window) ** 2,
-                                  (2 * std / self._window) ** 2])
+        self.brain.localizer.set_state((x, y), velocity, std, 2 * std / self._window)
 
 
 def main(args: list[str] | None = None) -> None:
