@@ -67,6 +67,7 @@ PARAMETERS = {
     'initial_y': (0.0, 'Deployment position y in metres (initial estimate)'),
     'seed': (0, "Seed of this agent's random generator"),
     'control_rate_hz': (50.0, 'Rate of the LQR inner loop and of cmd_force'),
+    'keepalive_hz': (10.0, 'Rate at which an unchanged cmd_force is repeated'),
     'outer_period_s': (0.5, 'Period of the outer loop (setpoint, forces), thesis 2 Hz'),
     'consensus_period_s': (2.0, 'Period of cost reports and Hungarian assignment rounds'),
     'localization_period_s': (3.0, 'Period of trilateration updates (thesis 4.2: 3 s)'),
@@ -102,6 +103,9 @@ class AgentNode(Node):
         self._type_counts = p['type_counts']
         self._last_setpoint: tuple[float, float] | None = None
         self._radio_lag_max = 0.0  # s: worst delay from the medium to this callback
+        self._last_force: tuple[float, float] | None = None
+        self._last_force_t = -1e9
+        self._keepalive_s = 1.0 / p['keepalive_hz']
 
         latched, sensor, radio, state = (
             QoSProfile(**profile) for profile in (qos.LATCHED, qos.SENSOR, qos.RADIO, qos.STATE))
@@ -197,11 +201,17 @@ class AgentNode(Node):
         stamp = now.to_msg()
         for packet in out.packets:
             self._tx.publish(packet_to_msg(packet, stamp))
-        wrench = WrenchStamped()
-        wrench.header.stamp = stamp
-        wrench.header.frame_id = 'map'
-        wrench.wrench.force.x, wrench.wrench.force.y = (float(v) for v in out.force)
-        self._cmd_force.publish(wrench)
+        # An unchanged force (a parked robot: zero) is repeated at keepalive_hz only: the
+        # simulator holds the last command and paces its clock to the stamps it gets.
+        force = (float(out.force[0]), float(out.force[1]))
+        t = now.nanoseconds * 1e-9
+        if force != self._last_force or t - self._last_force_t >= self._keepalive_s:
+            self._last_force, self._last_force_t = force, t
+            wrench = WrenchStamped()
+            wrench.header.stamp = stamp
+            wrench.header.frame_id = 'map'
+            wrench.wrench.force.x, wrench.wrench.force.y = force
+            self._cmd_force.publish(wrench)
         # The setpoint changes at the outer-loop rate only: publish it when it changes.
         setpoint = tuple(float(v) for v in out.velocity_setpoint)
         if setpoint != self._last_setpoint:
