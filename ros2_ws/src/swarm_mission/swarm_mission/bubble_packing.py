@@ -47,7 +47,7 @@ from shapely.geometry import Point, Polygon
 from shapely.ops import nearest_points
 
 from swarm_mission.contour import sample_boundary
-from swarm_mission.goals import PartitionError, placement_violations, required_area
+from swarm_mission.goals import check_fits, PartitionError, placement_violations
 
 LOG = logging.getLogger(__name__)
 
@@ -287,12 +287,7 @@ def bubble_pack(region: Polygon, radii: np.ndarray, rng: np.random.Generator,
     config = config or BubbleConfig()
     radii = np.asarray(radii, dtype=float)
     n = len(radii)
-    need = required_area(radii)
-    if need > region.area:
-        raise PartitionError(
-            f'the {n} coverage circles need at least {need:.3g} m^2 but the shape has '
-            f'{region.area:.3g} m^2: scale the shape by at least '
-            f'{np.sqrt(need / region.area):.3g}')
+    need = check_fits(region.area, radii)
     if config.spacing == 'auto':
         spacing = auto_spacing(region.area, n, config.spacing_factor)
     else:

@@ -23,7 +23,7 @@ from scipy.special import zeta
 import shapely
 from shapely.geometry import Polygon
 
-from swarm_mission.goals import PartitionError, required_area
+from swarm_mission.goals import check_fits, PartitionError
 
 
 @dataclass
@@ -85,12 +85,7 @@ def randomized_fractals(region: Polygon, radii: np.ndarray, rng: np.random.Gener
     config = config or FractalConfig()
     radii = np.asarray(radii, dtype=float)
     n = len(radii)
-    need = required_area(radii)
-    if need > region.area:
-        raise PartitionError(
-            f'the {n} coverage circles need at least {need:.3g} m^2 but the shape has '
-            f'{region.area:.3g} m^2: scale the shape by at least '
-            f'{np.sqrt(need / region.area):.3g}')
+    check_fits(region.area, radii)
     big_n = schedule_offset(n, config.c, config.fill)
     claims = np.sqrt(zeta_areas(region.area, n, config.c, big_n) / np.pi)
     # Largest circles first, ties in seeded random order.

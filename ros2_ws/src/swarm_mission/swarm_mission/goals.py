@@ -97,3 +97,16 @@ def placement_violations(points: np.ndarray, radii: np.ndarray, region,
 def required_area(radii: np.ndarray) -> float:
     """Smallest area that could hold these coverage circles (hexagonal packing bound)."""
     return float(np.pi * np.sum(np.square(radii)) / HEX_PACKING_DENSITY)
+
+
+def check_fits(area: float, radii: np.ndarray) -> float:
+    """The area the circles need; PartitionError when they cannot fit in ``area`` m^2.
+
+    The message says by how much the shape must be scaled (every partitioner's check).
+    """
+    need = required_area(radii)
+    if need > area:
+        raise PartitionError(
+            f'the {len(radii)} coverage circles need at least {need:.3g} m^2 but the shape '
+            f'has {area:.3g} m^2: scale the shape by at least {np.sqrt(need / area):.3g}')
+    return need
