@@ -15,7 +15,7 @@ def test_integers_match_rclpy_enums():
     assert qos.VOLATILE == rclpy_qos.QoSDurabilityPolicy.VOLATILE.value
 
 
-@pytest.mark.parametrize('name', ['LATCHED', 'SENSOR', 'RADIO', 'STATE'])
+@pytest.mark.parametrize('name', ['LATCHED', 'SENSOR', 'IMU', 'RADIO', 'STATE'])
 def test_profiles_build(name):
     profile = rclpy_qos.QoSProfile(**getattr(qos, name))
     assert profile.depth >= 1

@@ -115,7 +115,7 @@ class AgentNode(Node):
         self._state = self.create_publisher(AgentState, 'state', state)
         self._routes = self.create_publisher(RouteTable, 'routes', state)
 
-        self.create_subscription(Imu, 'imu', self._on_imu, sensor)
+        self.create_subscription(Imu, 'imu', self._on_imu, QoSProfile(**qos.IMU))
         self.create_subscription(PoseWithCovarianceStamped, 'gps', self._on_gps, sensor)
         self.create_subscription(RangeArray, 'ranges', self._on_ranges, sensor)
         self.create_subscription(RadioPacketArray, 'radio/rx', self._on_radio, radio)

@@ -17,6 +17,10 @@ LATCHED = {'history': KEEP_LAST, 'depth': 1, 'reliability': RELIABLE,
 # High-rate sensor data and commands: the newest sample matters, old ones are useless.
 SENSOR = {'history': KEEP_LAST, 'depth': 5, 'reliability': BEST_EFFORT,
           'durability': VOLATILE}
+# Accelerometer samples: each carries the mean acceleration of its interval, so a
+# dropped sample is a lost velocity increment for the Kalman filter: reliable, deep.
+IMU = {'history': KEEP_LAST, 'depth': 50, 'reliability': RELIABLE,
+       'durability': VOLATILE}
 # Radio frames: the medium model decides what is lost, DDS must not add losses.
 RADIO = {'history': KEEP_LAST, 'depth': 1000, 'reliability': RELIABLE,
          'durability': VOLATILE}

@@ -183,14 +183,15 @@ class SimNode(Node):
             self._record = open(path / 'truth.csv', 'w', encoding='utf-8')  # noqa: SIM115
             self._record.write('t,id,x,y,vx,vy,alive\n')
 
-        sensor, radio, state = (QoSProfile(**q) for q in (qos.SENSOR, qos.RADIO, qos.STATE))
+        sensor, radio, state, imu = (QoSProfile(**q) for q in (qos.SENSOR, qos.RADIO,
+                                                                 qos.STATE, qos.IMU))
         self.clock_pub = self.create_publisher(Clock, '/clock', 10)
         self.truth_pub = self.create_publisher(SwarmTruth, '/swarm/truth', state)
         self.marker_pub = self.create_publisher(MarkerArray, '/swarm/markers', state)
         self.imu_pubs, self.gps_pubs, self.range_pubs, self.rx_pubs = {}, {}, {}, {}
         for r in self.fleet:
             ns = f'/agent_{r.id}'
-            self.imu_pubs[r.id] = self.create_publisher(Imu, f'{ns}/imu', sensor)
+            self.imu_pubs[r.id] = self.create_publisher(Imu, f'{ns}/imu', imu)
             self.range_pubs[r.id] = self.create_publisher(RangeArray, f'{ns}/ranges', sensor)
             self.rx_pubs[r.id] = self.create_publisher(RadioPacketArray, f'{ns}/radio/rx',
                                                        radio)
