@@ -197,9 +197,24 @@ def _place_wall(x: float | None, half_length: float):
     return apply
 
 
+def _observe(swarm: HeadlessSwarm, t: float) -> None:
+    """No-op event: a run does not stop before it (observation window after a fault)."""
+
+
 def configure_fault(swarm: HeadlessSwarm, case: dict, config: dict, seed: int
                     ) -> tuple[float, float]:
-    """Schedule the case's fault on a built swarm; return (first, last) fault time."""
+    """Schedule the case's fault and its observation window; return (first, last) time."""
+    first, last = _schedule_fault(swarm, case, config, seed)
+    if case['kind'] != 'loss':
+        # A settled swarm would otherwise stop 5 s after the fault, before a lost beacon
+        # or a shorter range has shown its effect on localization.
+        swarm.scenario.events = [*swarm.scenario.events, (last + config['observe'], _observe)]
+    return first, last
+
+
+def _schedule_fault(swarm: HeadlessSwarm, case: dict, config: dict, seed: int
+                    ) -> tuple[float, float]:
+    """Removals or events of the case (loss is set on the medium); (first, last) time."""
     sc = swarm.scenario
     kind, value = case['kind'], case['value']
     t_fault = float(config['fault_time'])
@@ -471,6 +486,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument('--fault-window', type=float, default=30.0,
                         help='kills happen at random times in this window [s]')
     parser.add_argument('--duration', type=float, default=None, help='max simulated s')
+    parser.add_argument('--observe', type=float, default=None,
+                        help='never stop before this long after the last fault [s] '
+                        '(default 90, quick 20)')
     parser.add_argument('--ranges', type=float, nargs='+', default=None,
                         help='reduced radio ranges [m] (default 12 8 5 3)')
     parser.add_argument('--cases', default='', help='comma-separated subset of case names')
@@ -483,13 +501,14 @@ def study_config(args: argparse.Namespace) -> dict[str, Any]:
     """Defaults of the full study, or of --quick, overridden by explicit arguments."""
     if args.quick:
         base = {'agents': 6, 'beacons': 4, 'seeds': 1, 'shape_scale': 0.6, 'half_size': 10.0,
-                'fault_time': 40.0, 'duration': 150.0, 'ranges': (2.0,), 'wall_speed': 2.0}
+                'fault_time': 40.0, 'duration': 150.0, 'ranges': (2.0,), 'wall_speed': 2.0,
+                'observe': 20.0}
     else:
         base = {'agents': 20, 'beacons': 4, 'seeds': 2, 'shape_scale': 1.0,
                 'half_size': 25.0, 'fault_time': 120.0, 'duration': 360.0, 'ranges': RANGES,
-                'wall_speed': 1.0}
+                'wall_speed': 1.0, 'observe': 90.0}
     for key in ('agents', 'beacons', 'seeds', 'shape_scale', 'half_size', 'fault_time',
-                'duration'):
+                'duration', 'observe'):
         if getattr(args, key) is not None:
             base[key] = getattr(args, key)
     if args.ranges is not None:
