@@ -64,7 +64,10 @@ def test_five_agents_localize_agree_and_reach_their_goals(tmp_path):
         brains = [a.brain for a in agents]
         truth = sim.backend.positions()
         errors = np.linalg.norm(truth - np.array([b.localizer.position for b in brains]), axis=1)
-        assert errors.max() < 2.0, f'localization errors {errors.round(2)} m'
+        # Three beacons with 2 m GPS, 45 s in, still driving: errors of a metre or two
+        # (headless, the same scenario stays within 1.3 m); a broken IMU or radio path
+        # sends estimates tens of metres off.
+        assert errors.max() < 3.0, f'localization errors {errors.round(2)} m'
         # Every agent of a type used the rows of all agents of that type, and they agree.
         for agent_type in (1, 2):
             group = [b for b in brains if b.config.agent_type == agent_type]
