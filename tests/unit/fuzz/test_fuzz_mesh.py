@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import pathlib
-import struct
 
 from hypothesis import example, given, HealthCheck, settings
 from hypothesis import strategies as st
@@ -278,10 +277,6 @@ def test_corpus_dsdv_sequence_poisoning_heals():
     assert routers[1].next_hop(3) == 2, 'route to C never recovers'
 
 
-@pytest.mark.xfail(strict=True, raises=struct.error,
-                   reason='dsdv.py accepts a source address outside 0..0xFFFF as a neighbour; '
-                   'every later tick() then raises struct.error in wire.encode_adverts '
-                   '(reported, issue 10)')
 @pytest.mark.parametrize('source', [-1, 0x10000])
 def test_corpus_dsdv_source_outside_uint16(source):
     """A heartbeat from an address no radio can have must be dropped, not crash later."""
@@ -291,3 +286,4 @@ def test_corpus_dsdv_source_outside_uint16(source):
     router.tick(0.0)
     router.tick(2.0)
     assert source not in router.table
+    assert router.stats['rejected_bad_source'] == 1

@@ -199,6 +199,11 @@ class DsdvRouter:
         out = RouterOutput()
         if packet.source == self.id:
             return out
+        if not 0 <= packet.source < BROADCAST:
+            # No radio has this address (found by fuzzing: it became a neighbour and every
+            # later full dump failed to encode it).
+            self._count('rejected_bad_source')
+            return out
         if packet.destination not in (self.id, BROADCAST):
             self._count('not_for_me')
             return out
