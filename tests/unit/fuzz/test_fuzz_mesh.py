@@ -248,15 +248,12 @@ def _packet(fields: dict) -> Packet:
                   fields['sequence'], fields['ttl'], bytes.fromhex(fields['payload_hex']))
 
 
-@pytest.mark.xfail(strict=True, reason='dsdv.py compares 32-bit sequence numbers without '
-                   'wrap-around: one advert with sequence 0xFFFFFFFF poisons a route '
-                   'until the own counter of the destination wraps (reported, issue 10)')
 def test_corpus_dsdv_sequence_poisoning_heals():
     """Line A-B-C; A hears one advert 'C broken, sequence 0xFFFFFFFF'; C must be reached again.
 
-    C outbids the number internally (its counter goes above 2^32) but the wire carries
-    it modulo 2^32, so A compares a small number against 0xFFFFFFFF and keeps the
-    broken route forever.
+    Found by fuzzing: with plain integer comparison C's real (wrapped) numbers looked
+    older than 0xFFFFFFFF forever; the router now orders sequence numbers as RFC 1982
+    serial numbers.
     """
     case = _corpus('dsdv_sequence_poisoning.json')
     routers = {i: DsdvRouter(i) for i in (1, 2, 3)}

@@ -43,6 +43,27 @@ from swarm_agent.wire import Advert, INFINITE_HOPS, WireError
 
 LOG = logging.getLogger(__name__)
 SEQUENCE_STEP = 2  # own sequence numbers grow by this at every full dump (they stay even)
+SEQUENCE_MASK = 0xFFFFFFFF  # sequence numbers are 32-bit on the wire and wrap around
+_HALF = 1 << 31
+
+
+def seq_newer(a: int, b: int) -> bool:
+    """Serial-number order (RFC 1982) of 32-bit sequence numbers: is ``a`` newer than ``b``?
+
+    Plain ``>`` breaks at the wrap: fuzzing found one advert with 0xFFFFFFFF making a
+    destination unreachable for good, since its real, wrapped numbers looked older.
+    """
+    return 0 < ((a - b) & SEQUENCE_MASK) < _HALF
+
+
+def seq_ahead(a: int, b: int) -> int:
+    """How far ``a`` is ahead of ``b`` in serial-number order (0 when not newer)."""
+    d = (a - b) & SEQUENCE_MASK
+    return d if d < _HALF else 0
+
+
+def _seq_add(a: int, n: int) -> int:
+    return (a + n) & SEQUENCE_MASK
 
 
 @dataclass
@@ -159,7 +180,7 @@ class DsdvRouter:
                                     wire.encode_heartbeat(self.sequence, info), ttl=1))
         if t >= self._next_full:
             self._next_full = t + self.config.full_dump_period_s
-            self.sequence += SEQUENCE_STEP
+            self.sequence = _seq_add(self.sequence, SEQUENCE_STEP)
             adverts = [Advert(self.id, 0, self.sequence)] + [
                 Advert(r.destination, r.hop_count, r.sequence_number) for r in self.routes()]
             for frame in wire.encode_adverts(self.sequence, adverts):
@@ -189,7 +210,8 @@ class DsdvRouter:
         for route in self.table.values():
             if route.next_hop == neighbour and route.hop_count < INFINITE_HOPS:
                 route.hop_count = INFINITE_HOPS
-                route.sequence_number += 1 if route.sequence_number % 2 == 0 else 2
+                route.sequence_number = _seq_add(route.sequence_number,
+                                                 1 if route.sequence_number % 2 == 0 else 2)
                 route.changed = True
         self._count('link_breaks')
 
@@ -251,10 +273,12 @@ class DsdvRouter:
                 self.table[neighbour] = RouteEntry(neighbour, neighbour, 1, 0)
             return
         if (route is not None and route.hop_count == 1 and route.next_hop == neighbour
-                and seq <= route.sequence_number):
+                and not seq_newer(seq, route.sequence_number)):
             return
-        best = seq if route is None else max(seq, route.sequence_number
-                                             + route.sequence_number % 2)
+        best = seq
+        if route is not None:
+            restored = _seq_add(route.sequence_number, route.sequence_number % 2)
+            best = restored if seq_newer(restored, seq) else seq
         self.table[neighbour] = RouteEntry(neighbour, neighbour, 1, best)
 
     def _learn_neighbourhood(self, neighbour: int, adverts: list[Advert]) -> None:
@@ -286,9 +310,9 @@ class DsdvRouter:
         for adv in adverts:
             dest = adv.destination
             if dest == self.id:
-                if adv.sequence > self.sequence:
+                if seq_newer(adv.sequence, self.sequence):
                     # Someone holds a newer (odd, broken) number for us: outbid it.
-                    self.sequence = adv.sequence + 1 if adv.sequence % 2 else adv.sequence + 2
+                    self.sequence = _seq_add(adv.sequence, 1 if adv.sequence % 2 else 2)
                 continue
             hops = INFINITE_HOPS if adv.hops >= INFINITE_HOPS - 1 else adv.hops + 1
             current = self.table.get(dest)
@@ -296,7 +320,7 @@ class DsdvRouter:
                 if hops < INFINITE_HOPS:
                     self.table[dest] = RouteEntry(dest, neighbour, hops, adv.sequence)
                 continue
-            newer = adv.sequence > current.sequence_number
+            newer = seq_newer(adv.sequence, current.sequence_number)
             if hops >= INFINITE_HOPS:
                 # Fig. 3.9: a newer broken-link advert invalidates the stale route.
                 if newer:
@@ -306,8 +330,8 @@ class DsdvRouter:
                 continue
             if newer and not (current.next_hop == neighbour or hops <= current.hop_count
                               or current.hop_count >= INFINITE_HOPS
-                              or adv.sequence >= current.sequence_number
-                              + self.config.stale_generations * SEQUENCE_STEP):
+                              or seq_ahead(adv.sequence, current.sequence_number)
+                              >= self.config.stale_generations * SEQUENCE_STEP):
                 # Damping: a newer number that arrived first over a longer path (the
                 # shorter path's frame was lost or is later in its dump cycle) would make
                 # the route flap; the shorter path brings the same number soon. It wins
