@@ -6,6 +6,10 @@ separate ``agent_node`` process would get, all spun by one executor (the pattern
 ros2/examples ``executors/composed.py``). Measured on 2 cores: one participant
 discovers 50 nodes in under a second where 50 processes need tens of seconds.
 
+With ``use_sim_time`` the agents do not each subscribe to ``/clock``: their clocks are
+attached to one time source of the container (50 agents at a 50 Hz clock were 2500
+clock callbacks a second through one executor).
+
 Subscribes ``/swarm/kill`` (std_msgs/Int32MultiArray): agent ids whose nodes are
 destroyed, to emulate robots dying mid-run (self-repair experiments).
 """
@@ -19,6 +23,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.time_source import TimeSource
 from std_msgs.msg import Int32MultiArray
 import yaml
 
@@ -48,6 +53,9 @@ class ComposedAgents(Node):
             robots = yaml.safe_load(stream)['robots']
         self.executor_ = executor
         self.agents: dict[int, AgentNode] = {}
+        # One /clock subscription for all: the container's time source drives every
+        # agent's clock (the agents themselves run with use_sim_time false).
+        self._time_source = TimeSource(node=self) if use_sim_time else None
         for robot in robots:
             agent_id = int(robot['id'])
             overrides = [
@@ -62,10 +70,11 @@ class ComposedAgents(Node):
                 Parameter('localization_period_s', value=float(p['localization_period_s'])),
                 Parameter('partition_locally', value=bool(p['partition_locally'])),
                 Parameter('type_counts', value=p['type_counts']),
-                Parameter('use_sim_time', value=bool(use_sim_time)),
             ]
             node = AgentNode('agent', namespace=f'/agent_{agent_id}',
                              parameter_overrides=overrides, context=self.context)
+            if self._time_source is not None:
+                self._time_source.attach_clock(node.get_clock())
             self.agents[agent_id] = node
             executor.add_node(node)
         self.create_subscription(Int32MultiArray, '/swarm/kill', self._on_kill, 10)
