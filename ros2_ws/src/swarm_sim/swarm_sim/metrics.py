@@ -83,7 +83,10 @@ def displacement_lower_bound(initial: np.ndarray, final: np.ndarray, types: np.n
         idx = np.flatnonzero(types == t)
         graph = VisibilityGraph(grow_obstacles(list(shape.obstacles), radii[int(t)]))
         cost = graph.cost_matrix(initial[idx], final[idx])
-        cost = np.where(np.isfinite(cost), cost, 1e9)
+        # A robot pressed against an obstacle sits inside its grown copy and has no
+        # free-space path; the straight line still bounds its travel from below.
+        straight = np.linalg.norm(initial[idx][:, None, :] - final[idx][None, :, :], axis=2)
+        cost = np.where(np.isfinite(cost), cost, straight)
         rows, cols = linear_sum_assignment(cost)
         total += float(cost[rows, cols].sum())
     return total
