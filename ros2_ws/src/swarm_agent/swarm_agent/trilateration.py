@@ -8,7 +8,7 @@ refines the estimate, and starts from the propagated estimate when A is rank
 deficient. When all beacons lie to one side of the agent, the ranges fit a mirror
 image of its position almost as well as the position itself and the linear solution
 may land on either; with a prior, Gauss-Newton also starts from it and, between two
-fits equally good within the range noise, the one nearer the prior wins. Degenerate
+fits within two range-noise deviations of each other, the one nearer the prior wins. Degenerate
 geometry (coincident or collinear beacons without a prior) raises
 ``DegenerateGeometryError`` instead of returning garbage.
 """
@@ -102,7 +102,9 @@ def trilaterate(beacons, ranges, initial=None, range_std: float = 0.3) -> Trilat
             q = gauss_newton(beacons, ranges, prior)
             rp, rq = _rms_residual(beacons, ranges, p), _rms_residual(beacons, ranges, q)
             nearer = np.hypot(*(q - prior)) < np.hypot(*(p - prior))
-            if rq < rp - 0.5 * range_std or (nearer and rq <= rp + 0.5 * range_std):
+            # Three ranges fit a mirror image about as well as the truth (one redundant
+            # range): keep the prior's side unless the other fit is clearly better.
+            if rq < rp - 2.0 * range_std or (nearer and rq <= rp + 2.0 * range_std):
                 p = q
                 method = 'gauss-newton (from prior)'
     diff = p - beacons
