@@ -43,6 +43,7 @@ from swarm_agent.conversions import (
     packet_to_msg,
     routes_to_msg,
     snapshot_to_state,
+    stamp_seconds,
 )
 from swarm_mission import qos
 from swarm_mission.conversions import goals_from_msg, shape_from_msg
@@ -142,7 +143,7 @@ class AgentNode(Node):
         # load, and a ~1 m/s^2 manoeuvre times that jitter random-walks the velocity
         # estimate by centimetres per second at every sample (measured: estimates
         # hundreds of metres off after a minute when integrating over arrival times).
-        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        stamp = stamp_seconds(msg.header.stamp)
         a = msg.linear_acceleration
         self.brain.on_imu(stamp if stamp > 0.0 else self._now(), np.array([a.x, a.y]))
 
@@ -163,7 +164,7 @@ class AgentNode(Node):
 
     def _on_radio(self, msg: RadioPacketArray) -> None:
         now = self._now()
-        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        stamp = stamp_seconds(msg.header.stamp)
         if stamp > 0.0:
             self._radio_lag_max = max(self._radio_lag_max, now - stamp)
         for packet in msg.packets:

@@ -315,11 +315,10 @@ class AgentBrain:
     def _info(self) -> NeighbourInfo:
         pos = self.localizer.position
         vel = self.localizer.velocity
-        cov = np.asarray(self.localizer.covariance)
-        std = float(np.sqrt(max(0.5 * (cov[0, 0] + cov[1, 1]), 0.0)))
         return NeighbourInfo(self.config.agent_type, self.config.is_beacon,
                              int(self.localizer.mode), (float(pos[0]), float(pos[1])),
-                             (float(vel[0]), float(vel[1])), self.settled, std)
+                             (float(vel[0]), float(vel[1])), self.settled,
+                             self.localizer.position_std)
 
     def _fresh_neighbours(self, t: float) -> dict[int, NeighbourInfo]:
         stale = [k for k, n in self.neighbours.items()
@@ -389,9 +388,7 @@ class AgentBrain:
         # jumps by a few decimetres at every trilateration); park and brake instead. A
         # parked agent moves again only when the goal is farther than the resume radius
         # by two standard deviations of its own position estimate, or its goal changed.
-        cov = self.localizer.covariance
-        sigma = math.sqrt(max(0.5 * (cov[0, 0] + cov[1, 1]), 0.0))
-        resume = self.config.resume_radius + 2.0 * sigma
+        resume = self.config.resume_radius + 2.0 * self.localizer.position_std
         if (self.goal_version, goal.id) != self._parked_goal:
             self._parked = False
         if distance < self.config.hold_radius or (self._parked and distance < resume):

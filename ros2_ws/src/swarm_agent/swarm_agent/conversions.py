@@ -15,6 +15,11 @@ from swarm_agent.packet import Packet
 from swarm_msgs.msg import AgentState, CostReport, RadioPacket, RouteEntry, RouteTable
 
 
+def stamp_seconds(stamp: Time) -> float:
+    """A builtin_interfaces/Time as seconds (0.0 for an unset stamp)."""
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
 def packet_to_msg(packet: Packet, stamp: Time | None = None) -> RadioPacket:
     """Domain packet -> swarm_msgs/RadioPacket."""
     msg = RadioPacket()

@@ -73,6 +73,12 @@ class Localizer:
         return self.kf.x[2:4]
 
     @property
+    def position_std(self) -> float:
+        """Standard deviation of the position estimate (m, mean of the two axes)."""
+        p = self.kf.P
+        return float(np.sqrt(max(0.5 * (p[0, 0] + p[1, 1]), 0.0)))
+
+    @property
     def covariance(self) -> np.ndarray:
         return self.kf.P[:4, :4]
 

@@ -19,6 +19,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
+from swarm_agent.conversions import stamp_seconds
 from swarm_mission import qos
 from swarm_mission.conversions import goals_from_msg, shape_from_msg
 from swarm_mission.shapes import ShapeError
@@ -90,7 +91,7 @@ class MonitorNode(Node):
     def _truth_time(self) -> float:
         if self.truth is None:
             return 0.0
-        return self.truth.header.stamp.sec + self.truth.header.stamp.nanosec * 1e-9
+        return stamp_seconds(self.truth.header.stamp)
 
     def _on_truth(self, msg: SwarmTruth) -> None:
         with self.lock:

@@ -37,6 +37,7 @@ import pathlib
 import sys
 import time
 
+from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseWithCovarianceStamped, WrenchStamped
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -50,7 +51,7 @@ from sensor_msgs.msg import Imu
 from std_msgs.msg import Int32MultiArray
 from visualization_msgs.msg import Marker, MarkerArray
 
-from swarm_agent.conversions import packet_from_msg, packet_to_msg
+from swarm_agent.conversions import packet_from_msg, packet_to_msg, stamp_seconds
 from swarm_mission import qos
 from swarm_mission.robot_types import load_robot_types
 from swarm_mission.shapes import load_shape, ShapeError
@@ -237,7 +238,7 @@ class SimNode(Node):
         self.forces[i] = f
         self.force_time[i] = self.t
         stamp = msg.header.stamp
-        self.force_stamp[i] = stamp.sec + stamp.nanosec * 1e-9
+        self.force_stamp[i] = stamp_seconds(stamp)
         self.force_wall[i] = time.monotonic()
 
     def _on_tx(self, msg: RadioPacket) -> None:
@@ -314,7 +315,6 @@ class SimNode(Node):
 
     def _stamp(self):
         sec = int(self.t)
-        from builtin_interfaces.msg import Time
         return Time(sec=sec, nanosec=int(round((self.t - sec) * 1e9)) % 1_000_000_000)
 
     def _due_now(self, key: str, rate_param: str) -> bool:
