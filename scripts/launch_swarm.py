@@ -17,6 +17,13 @@ Writes into --out: ``metrics.json`` (the keys of scripts/evaluate.py plus
 real_time_factor, max_localization_error, consensus_rounds, cpu and memory figures),
 ``fleet.yaml``, ``logs/*.log`` and the figures ``trajectories.png``, ``mesh.png``,
 ``localization_error.png`` and ``modes.png``.
+
+One swarm over several hosts: run the same command on every host with the same
+``--domain`` and ``--seed`` (so the same fleet), each with the agent ids it runs in
+``--local-agents``; one host runs the world (sim, mission, monitor: it writes the
+metrics), the others add ``--agents-only`` and run until Ctrl-C. Discovery stays on
+localhost except for the addresses in ROS_STATIC_PEERS (ROS 2 Jazzy), so give each host
+the others' addresses there.
 """
 
 from __future__ import annotations
@@ -59,12 +66,42 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help='remove robots mid-run, e.g. --remove 60:3,17 (sim time:ids)')
     p.add_argument('--control-rate', type=float, default=50.0, help='agent inner loop Hz')
     p.add_argument('--domain', type=int, default=None, help='ROS_DOMAIN_ID (default: free)')
+    p.add_argument('--local-agents', default='',
+                   help='agent ids started here, e.g. 0-3 or 0,2,5-7 or none (default: all);'
+                        ' the others join from hosts listed in ROS_STATIC_PEERS')
+    p.add_argument('--agents-only', action='store_true',
+                   help='start only the --local-agents, for the world running on another '
+                        'host (no sim, mission or metrics); runs until Ctrl-C')
     p.add_argument('--out', required=True)
     return p.parse_args(argv)
 
 
 class LaunchError(Exception):
     """Refuse to start: one clear line."""
+
+
+def parse_agent_ids(spec: str, n_agents: int) -> list[int]:
+    """Ids of ``--local-agents``: '' is all, 'none' is none, else e.g. '0-3,6'."""
+    if not spec.strip():
+        return list(range(n_agents))
+    if spec.strip().lower() == 'none':
+        return []
+    ids: set[int] = set()
+    for part in spec.split(','):
+        lo, sep, hi = part.strip().partition('-')
+        try:
+            first, last = int(lo), int(hi if sep else lo)
+        except ValueError:
+            raise LaunchError(f'--local-agents {spec!r}: {part.strip()!r} is not an id or a '
+                              'range; use e.g. 0-3 or 0,2,5-7') from None
+        if first > last:
+            raise LaunchError(f'--local-agents {spec!r}: range {part.strip()} runs backwards; '
+                              f'write {last}-{first}')
+        if first < 0 or last >= n_agents:
+            raise LaunchError(f'--local-agents {spec!r}: agent ids run 0..{n_agents - 1} '
+                              f'with --agents {n_agents}')
+        ids.update(range(first, last + 1))
+    return sorted(ids)
 
 
 def validate(args: argparse.Namespace):
@@ -84,6 +121,17 @@ def validate(args: argparse.Namespace):
     if args.agents < 1:
         raise LaunchError(f'--agents must be at least 1, got {args.agents}')
     beacons = args.beacons if args.beacons is not None else max(3, round(0.15 * args.agents))
+    args.local_ids = parse_agent_ids(args.local_agents, args.agents)
+    split = args.agents_only or len(args.local_ids) < args.agents
+    if split and args.domain is None:
+        raise LaunchError('a swarm split over hosts (--local-agents, --agents-only) needs '
+                          'the same --domain on every host; add e.g. --domain 42')
+    if args.agents_only and not args.local_ids:
+        raise LaunchError('--agents-only with --local-agents none starts nothing; '
+                          'name the agents of this host, e.g. --local-agents 4-7')
+    if args.agents_only and args.remove:
+        raise LaunchError('--remove acts from the host that runs the sim; '
+                          'drop it from the --agents-only command')
     if not 0 <= beacons <= args.agents:
         raise LaunchError(f'--beacons {beacons} exceeds --agents {args.agents}; '
                           f'use at most {args.agents}')
@@ -202,6 +250,65 @@ def ros_args(params: dict, ns: str | None = None, node: str | None = None) -> li
     return args
 
 
+def start_agents(children: Children, args: argparse.Namespace, fleet, fleet_file: pathlib.Path,
+                 counts: dict[int, int]) -> None:
+    """Start the agents of ``args.local_ids``: one composed process or one per agent."""
+    type_counts = ','.join(f'{t}:{c}' for t, c in sorted(counts.items()))
+    local = set(args.local_ids)
+    if args.composed and local:
+        params = {'fleet_file': str(fleet_file), 'method': args.method, 'seed': args.seed,
+                  'control_rate_hz': args.control_rate, 'use_sim_time': True,
+                  'partition_locally': args.decentralized, 'type_counts': type_counts}
+        if len(local) < args.agents:
+            params['agent_ids'] = sorted(local)
+        children.start('agents', ['-m', 'swarm_agent.composed_node', *ros_args(params)])
+    elif not args.composed:
+        for r in fleet:
+            if r.id not in local:
+                continue
+            children.start(f'agent_{r.id}', ['-m', 'swarm_agent.agent_node', *ros_args({
+                'agent_id': r.id, 'agent_type': r.type, 'is_beacon': r.is_beacon,
+                'initial_x': r.x, 'initial_y': r.y, 'method': args.method,
+                'seed': args.seed + r.id, 'control_rate_hz': args.control_rate,
+                'partition_locally': args.decentralized, 'type_counts': type_counts,
+                'use_sim_time': True}, ns=f'/agent_{r.id}', node='agent')])
+
+
+def _peers() -> str:
+    peers = os.environ.get('ROS_STATIC_PEERS', '').strip()
+    return f'in ROS_STATIC_PEERS ({peers})' if peers else \
+        'in ROS_STATIC_PEERS, which is not set: only this machine can join'
+
+
+def run_agents_only(children: Children, args: argparse.Namespace, fleet,
+                    fleet_file: pathlib.Path, counts: dict[int, int], domain: int) -> int:
+    """Run this host's agents for a world on another host until Ctrl-C (or SIGTERM)."""
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, interrupt)
+    crashed = None
+    try:
+        start_agents(children, args, fleet, fleet_file, counts)
+        mode = 'composed' if args.composed else 'per-process'
+        print(f'launch_swarm: agents {args.local_agents or "all"} of {args.agents} ({mode}) '
+              f'for the sim on hosts {_peers()}, domain {domain}, logs in '
+              f'{children.log_dir}; Ctrl-C stops them', flush=True)
+        while crashed is None:
+            time.sleep(0.5)
+            crashed = children.crashed()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        children.stop_all()
+    if crashed:
+        print(f'launch_swarm: {crashed} exited with code {children.procs[crashed].returncode};'
+              f' last log lines:\n{children.tail(crashed)}', file=sys.stderr)
+        return 1
+    print('launch_swarm: agents stopped', flush=True)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     out = pathlib.Path(args.out).resolve()
@@ -220,6 +327,8 @@ def main(argv: list[str] | None = None) -> int:
                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
     os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     children = Children(out / 'logs', env)
+    if args.agents_only:
+        return run_agents_only(children, args, fleet, fleet_file, counts, domain)
     ids = [r.id for r in sorted(fleet, key=lambda r: r.id)]
     removals = sorted((float(s.split(':')[0]), [int(i) for i in s.split(':')[1].split(',')])
                       for s in args.remove)
@@ -249,24 +358,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.sequence:
         mission_params['sequence_file'] = str(pathlib.Path(args.sequence).resolve())
     children.start('mission', ['-m', 'swarm_mission.mission_node', *ros_args(mission_params)])
-    type_counts = ','.join(f'{t}:{c}' for t, c in sorted(counts.items()))
-    if args.composed:
-        children.start('agents', ['-m', 'swarm_agent.composed_node', *ros_args({
-            'fleet_file': str(fleet_file), 'method': args.method, 'seed': args.seed,
-            'control_rate_hz': args.control_rate, 'use_sim_time': True,
-            'partition_locally': args.decentralized, 'type_counts': type_counts})])
-    else:
-        for r in fleet:
-            children.start(f'agent_{r.id}', ['-m', 'swarm_agent.agent_node', *ros_args({
-                'agent_id': r.id, 'agent_type': r.type, 'is_beacon': r.is_beacon,
-                'initial_x': r.x, 'initial_y': r.y, 'method': args.method,
-                'seed': args.seed + r.id, 'control_rate_hz': args.control_rate,
-                'partition_locally': args.decentralized, 'type_counts': type_counts,
-                'use_sim_time': True}, ns=f'/agent_{r.id}', node='agent')])
+    start_agents(children, args, fleet, fleet_file, counts)
 
     mode = 'composed' if args.composed else 'per-process'
     print(f'launch_swarm: {args.agents} agents ({mode}), {beacons} beacons, {args.method} '
           f'on {args.shape}, domain {domain}, logs in {out / "logs"}', flush=True)
+    if len(args.local_ids) < args.agents:
+        print(f'launch_swarm: agents {args.local_agents} start here, the others on hosts '
+              f'{_peers()}', flush=True)
     wall0 = time.monotonic()
     peak_rss = 0
     outcome = 'duration'
@@ -335,6 +434,8 @@ def main(argv: list[str] | None = None) -> int:
         monitor_shapes = list(monitor.shapes)
         monitor_goals = list(monitor.goals)
         rounds = len(monitor.rounds_seen)
+        with monitor.lock:
+            heard = [a for a, st in zip(monitor.agent_ids, monitor.states) if st is not None]
         goal_versions = monitor.goal_version
         monitor.destroy_node()
         rclpy.try_shutdown()
@@ -352,7 +453,7 @@ def main(argv: list[str] | None = None) -> int:
                              'launcher_max_rss_bytes':
                                  resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
                              'seed': args.seed, 'truth_subscribers': truth_readers,
-                             'goal_versions': goal_versions})
+                             'goal_versions': goal_versions, 'agents_heard': heard})
     scenario = {k: v for k, v in vars(args).items()}
     scenario.update(beacons=beacons, domain=domain)
     write_metrics(out, [metrics], scenario)

@@ -1,7 +1,8 @@
 """composed_node: many agent nodes in one process (one DDS participant) for scale.
 
 Reads a fleet file (``robots: [{id, type, beacon, x, y}, ...]``) and creates one
-``AgentNode`` per robot, each in its own ``agent_K`` namespace with the same parameters a
+``AgentNode`` per robot (or per robot listed in ``agent_ids``, when the swarm is split
+over several hosts), each in its own ``agent_K`` namespace with the same parameters a
 separate ``agent_node`` process would get, all spun by one executor (the pattern of
 ros2/examples ``executors/composed.py``). Measured on 2 cores: one participant
 discovers 50 nodes in under a second where 50 processes need tens of seconds.
@@ -47,10 +48,15 @@ class ComposedAgents(Node):
         super().__init__('agents_container', **kwargs)
         for name, (default, text) in SHARED.items():
             self.declare_parameter(name, default, ParameterDescriptor(description=text))
+        self.declare_parameter('agent_ids', Parameter.Type.INTEGER_ARRAY, ParameterDescriptor(
+            description='Ids of the fleet to run here (unset: all); the others run elsewhere'))
         p = {name: self.get_parameter(name).value for name in SHARED}
+        only = self.get_parameter_or('agent_ids').value
         use_sim_time = self.get_parameter('use_sim_time').value
         with open(p['fleet_file'], encoding='utf-8') as stream:
             robots = yaml.safe_load(stream)['robots']
+        if only is not None:
+            robots = [r for r in robots if int(r['id']) in set(only)]
         self.executor_ = executor
         self.agents: dict[int, AgentNode] = {}
         # One /clock subscription for all: the container's time source drives every
