@@ -10,15 +10,26 @@ with the same brains, radio medium, partitioners and sensor models as the ROS sy
   boxplots.png      total displacement, settling time, epsilon_t, epsilon_g (Figs. 4.17-4.34)
   trajectories.png  the first trial's true trajectories, shape and final goals
 
-Example:
+The trials run on --workers local processes or, with --dask ADDRESS, on a Dask cluster
+(``dask.distributed.Client(ADDRESS)``; ``--dask local`` starts a LocalCluster of --workers
+single-threaded processes). A trial depends only on its seed, so both give the same
+per-trial metrics for the same seeds (only the wall-clock figures differ). Workers of a
+remote cluster need the swarm_* packages importable (the same environment); this script
+itself is shipped to them with the tasks.
+
+Examples:
   scripts/env.sh python scripts/evaluate.py --method bubble --shape circle_314 \\
       --agents 50 --beacons 8 --trials 4 --workers 2 --out results/eval_bubble
+  scripts/env.sh python scripts/evaluate.py --trials 20 --dask tcp://scheduler:8786 \\
+      --out results/eval_dask
 """
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterator
 import concurrent.futures as futures
+import contextlib
 import pathlib
 import sys
 
@@ -27,7 +38,7 @@ from swarm_mission.partition import PartitionError
 from swarm_mission.robot_types import default_type_counts, parse_type_counts, RobotTypeError
 from swarm_mission.shapes import load_shape, ShapeError
 from swarm_sim import plots
-from swarm_sim.headless import HeadlessSwarm, Scenario, ScenarioError
+from swarm_sim.headless import HeadlessSwarm, Scenario, ScenarioError, TrialRecord
 from swarm_sim.medium import MediumConfig
 from swarm_sim.report import run_report, write_metrics
 
@@ -49,7 +60,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         help='beacon count (default: 15 %% of the agents, as in the thesis)')
     parser.add_argument('--trials', type=int, default=1)
     parser.add_argument('--seed', type=int, default=0)
-    parser.add_argument('--workers', type=int, default=1)
+    parser.add_argument('--workers', type=int, default=1,
+                        help='local worker processes (also the size of --dask local)')
+    parser.add_argument('--dask', default='', metavar='ADDRESS',
+                        help="run the trials on the Dask scheduler at ADDRESS (e.g. "
+                             "tcp://host:8786), or 'local' for a LocalCluster of --workers "
+                             'processes')
     parser.add_argument('--duration', type=float, default=600.0,
                         help='maximum simulated seconds per trial')
     parser.add_argument('--sequence', default='', help='YAML/JSON shape sequence file')
@@ -86,11 +102,66 @@ def build_scenario(args: argparse.Namespace, seed: int) -> Scenario:
                     control_dt=1.0 / args.control_rate)
 
 
-def run_trial(args: argparse.Namespace, seed: int):
-    """Run one trial (in a worker process); return (metrics, record or None)."""
+def run_trial(args: argparse.Namespace, seed: int) -> TrialRecord:
+    """Run one trial (in a worker process); its metrics carry the seed."""
     record = HeadlessSwarm(build_scenario(args, seed)).run()
     record.metrics['seed'] = seed
     return record
+
+
+class DaskError(RuntimeError):
+    """The Dask cluster cannot be used: one line saying why and what to do."""
+
+
+def local_trials(args: argparse.Namespace, seeds: list[int]) -> Iterator[TrialRecord]:
+    """Records of ``seeds`` from --workers local processes, in completion order."""
+    with futures.ProcessPoolExecutor(max_workers=args.workers) as pool:
+        jobs = [pool.submit(run_trial, args, s) for s in seeds]
+        for job in futures.as_completed(jobs):
+            yield job.result()
+
+
+@contextlib.contextmanager
+def dask_client(address: str, workers: int) -> Iterator[object]:
+    """A connected ``dask.distributed.Client``, closed (with its LocalCluster) on exit.
+
+    ``local`` starts a LocalCluster of ``workers`` processes with one thread each and no
+    dashboard; any other value is a scheduler address. Raises DaskError, one line.
+    """
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise DaskError("--dask needs dask.distributed; install it with: scripts/env.sh pip "
+                        "install 'dask[distributed]' (or make bootstrap)") from None
+    cluster = None
+    try:
+        if address == 'local':
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=None)
+            client = Client(cluster)
+        else:
+            client = Client(address, timeout='10s')
+    except (OSError, TimeoutError, ValueError) as exc:
+        if cluster is not None:
+            cluster.close()
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise DaskError(f'cannot use the Dask scheduler {address!r} ({first}); give '
+                        "tcp://HOST:PORT of a running dask scheduler or 'local'") from None
+    try:
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def dask_trials(client, args: argparse.Namespace, seeds: list[int]) -> Iterator[TrialRecord]:
+    """Records of ``seeds`` computed on the cluster of ``client``, in completion order."""
+    from dask.distributed import as_completed
+
+    jobs = client.map(run_trial, [args] * len(seeds), seeds, pure=False)
+    for job in as_completed(jobs):
+        yield job.result()
 
 
 def write_table(path: pathlib.Path, method: str, mean: dict) -> None:
@@ -131,15 +202,19 @@ def main(argv: list[str] | None = None) -> int:
     trials: list[dict] = []
     first = None
     try:
-        with futures.ProcessPoolExecutor(max_workers=args.workers) as pool:
-            jobs = {pool.submit(run_trial, args, s): s for s in seeds}
-            for job in tqdm(futures.as_completed(jobs), total=len(jobs), unit='trial',
-                            desc=f'{args.method} x{args.agents}'):
-                record = job.result()
+        with contextlib.ExitStack() as stack:
+            if args.dask:
+                client = stack.enter_context(dask_client(args.dask, args.workers))
+                records = dask_trials(client, args, seeds)
+            else:
+                records = local_trials(args, seeds)
+            stack.enter_context(contextlib.closing(records))
+            for record in tqdm(records, total=len(seeds), unit='trial',
+                               desc=f'{args.method} x{args.agents}'):
                 trials.append(record.metrics)
                 if record.metrics['seed'] == seeds[0]:
                     first = record
-    except (PartitionError, ShapeError, ScenarioError) as exc:
+    except (PartitionError, ShapeError, ScenarioError, DaskError) as exc:
         print(f'evaluate.py: {exc}', file=sys.stderr)
         return 2
     trials.sort(key=lambda t: t['seed'])
