@@ -172,7 +172,7 @@ def bench(n: int, seed: int, limit_s: float) -> dict:
     period = net.config.full_dump_period_s
     for key in ('cold_start_s', 'link_break_s', 'link_addition_s'):
         value = row.get(key)
-        row[key.replace('_s', '_periods')] = None if value is None else value / period
+        row[key[:-2] + '_periods'] = None if value is None else value / period
     return row
 
 

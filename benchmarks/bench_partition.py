@@ -22,6 +22,29 @@ from swarm_mission.robot_types import default_type_counts, load_robot_types
 from swarm_mission.shapes import load_shape
 
 
+def bench(n: int, shape_name: str = 'circle_314', repeats: int = 3,
+          methods: tuple[str, ...] = METHODS) -> list[dict]:
+    """Partition the thesis shape scaled to ``n`` agents ``repeats`` times (seeds 0..) per method.
+
+    Returns one row per method: median and max seconds (``PartitionResult.seconds``), the
+    iterations of each run and the mean irregularities.
+    """
+    radii = {t: r.coverage_radius for t, r in load_robot_types().items()}
+    shape = load_shape(shape_name).scaled(float(np.sqrt(n / 50)))
+    rows = []
+    for method in methods:
+        runs = [partition(shape, default_type_counts(n), radii, method, seed=s)
+                for s in range(repeats)]
+        seconds = [r.seconds for r in runs]
+        rows.append({'agents': n, 'method': method, 'area': shape.area,
+                     'seconds_median': float(np.median(seconds)),
+                     'seconds_max': float(np.max(seconds)),
+                     'iterations': [r.iterations for r in runs],
+                     'epsilon_t': float(np.mean([r.epsilon_t for r in runs])),
+                     'epsilon_g': float(np.mean([r.epsilon_g for r in runs]))})
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--agents', default='50,200,1000')
@@ -37,23 +60,11 @@ def main(argv: list[str] | None = None) -> int:
         print('bench_partition: error: --agents must be positive integers like 50,200,1000 '
               'and --repeats positive', file=sys.stderr)
         return 2
-    radii = {t: r.coverage_radius for t, r in load_robot_types().items()}
-    base = load_shape(args.shape)
     results = []
     for n in sizes:
-        shape = base.scaled(float(np.sqrt(n / 50)))
-        for method in METHODS:
-            runs = [partition(shape, default_type_counts(n), radii, method, seed=s)
-                    for s in range(args.repeats)]
-            seconds = [r.seconds for r in runs]
-            row = {'agents': n, 'method': method, 'area': shape.area,
-                   'seconds_median': float(np.median(seconds)),
-                   'seconds_max': float(np.max(seconds)),
-                   'iterations': [r.iterations for r in runs],
-                   'epsilon_t': float(np.mean([r.epsilon_t for r in runs])),
-                   'epsilon_g': float(np.mean([r.epsilon_g for r in runs]))}
+        for row in bench(n, args.shape, args.repeats):
             results.append(row)
-            print(f'{method:8s} {n:5d} agents ({shape.area:7.0f} m^2): median '
+            print(f'{row["method"]:8s} {n:5d} agents ({row["area"]:7.0f} m^2): median '
                   f'{row["seconds_median"]:.2f} s, max {row["seconds_max"]:.2f} s, '
                   f'iterations {row["iterations"]}, eps_t {row["epsilon_t"]:.2f}, '
                   f'eps_g {row["epsilon_g"]:.3f}', flush=True)
