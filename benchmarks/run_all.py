@@ -436,7 +436,7 @@ def bench_ros(sizes: Sequence[int], duration_s: float, timeout_s: float,
             if mode == 'composed':
                 cmd.append('--composed')
             needed, available = n * PROCESS_MB if mode == 'per-process' else 0, available_mb()
-            if available is not None and needed > available / 2:
+            if available is not None and needed > 0.8 * available:
                 rows.append({'agents': n, 'mode': mode, 'duration_s': duration_s,
                              'error': f'skipped: {n} processes need about {needed / 1024:.1f} '
                                       f'GB, {available / 1024:.1f} GB available'})
