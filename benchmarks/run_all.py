@@ -51,6 +51,8 @@ import math
 import os
 import pathlib
 import platform
+import shlex
+import shutil
 import signal
 import subprocess
 import sys
@@ -377,7 +379,41 @@ def bench_evaluator(duration_s: float, repeats: int, agents: int, beacons: int,
             'settled_share': float(np.mean([t['settled'] for t in trials]))}
 
 
-def bench_executor_section(nodes: int, rate: float, seconds: float, repeats: int) -> dict:
+def executor_check(agents: int, duration_s: float, timeout_s: float = 600.0) -> dict:
+    """Do the real agents run under each executor? launch_swarm --composed on sim time."""
+    checks = {}
+    for kind in ('single', 'events'):
+        env = ros_env()
+        env.pop('ROS_DOMAIN_ID', None)   # the launcher picks a free domain
+        env['SWARM_EXECUTOR'] = kind
+        with tempfile.TemporaryDirectory(prefix='run_all_exec_') as work:
+            out = pathlib.Path(work)
+            proc = run_child([sys.executable, str(ROOT / 'scripts' / 'launch_swarm.py'),
+                              '--agents', str(agents), '--half-size', '20', '--duration',
+                              str(duration_s), '--composed', '--out', str(out)],
+                             timeout_s, env)
+            try:
+                m = json.loads((out / 'metrics.json').read_text())['trials'][0]
+            except (OSError, ValueError, KeyError, IndexError):
+                checks[kind] = {'error': (proc.stderr.strip().splitlines()
+                                          or ['no metrics.json'])[-1]}
+                continue
+        heard = m.get('agents_heard')
+        heard = len(heard) if isinstance(heard, list) else heard
+        checks[kind] = {'agents': agents, 'duration_s': duration_s, 'agents_heard': heard,
+                        'total_displacement': m.get('total_displacement'),
+                        'consensus_rounds': m.get('consensus_rounds'),
+                        'real_time_factor': m.get('real_time_factor'),
+                        'cpu_cores_used': m.get('cpu_cores_used')}
+        checks[kind]['works'] = bool(heard == agents
+                                     and (m.get('total_displacement') or 0.0) > 0.0)
+        log(f'  executor {kind:6s} with {agents} composed agents on sim time: heard '
+            f'{heard}/{agents}, moved {fmt_num(m.get("total_displacement"), 0)} m')
+    return checks
+
+
+def bench_executor_section(nodes: int, rate: float, seconds: float, repeats: int,
+                           check_agents: int = 0, check_duration_s: float = 15.0) -> dict:
     env = ros_env()
     runs: dict[str, list[dict]] = {}
     for _ in range(repeats):
@@ -409,6 +445,8 @@ def bench_executor_section(nodes: int, rate: float, seconds: float, repeats: int
     env.pop('SWARM_EXECUTOR', None)
     proc = run_child([sys.executable, '-c', probe], timeout_s=120, env=env)
     result['composed_node_default'] = (proc.stdout.strip().splitlines() or ['unknown'])[-1]
+    if check_agents:
+        result['agents_check'] = executor_check(check_agents, check_duration_s)
     return result
 
 
@@ -444,6 +482,8 @@ def bench_ros(sizes: Sequence[int], duration_s: float, timeout_s: float,
                 continue
             log(f'  ros {mode} {n} agents: {" ".join(cmd[1:])}')
             wall, proc = timed(run_child, cmd, timeout_s, env)
+            out.mkdir(parents=True, exist_ok=True)
+            (out / 'launcher.log').write_text(proc.stdout + proc.stderr, encoding='utf-8')
             row: dict = {'agents': n, 'mode': mode, 'duration_s': duration_s,
                          'launcher_wall_s': wall, 'returncode': proc.returncode}
             try:
@@ -575,6 +615,7 @@ def scaling_table(results: dict) -> list[str]:
 
 
 def executor_paragraph(ex: dict) -> list[str]:
+    """The executor table and the 'what we chose and why' paragraph, from the numbers."""
     single, events = ex['executors'].get('single'), ex['executors'].get('events')
     lines = ['| Executor | callbacks/s | timer rate achieved [Hz] | CPU cores | '
              'cores per 1000 callbacks/s |', '|---|---|---|---|---|']
@@ -587,23 +628,47 @@ def executor_paragraph(ex: dict) -> list[str]:
     text = (f'**What we chose and why.** `composed_node` spins its agents with '
             f'`agent_node.make_executor()`, which gives a `{chosen}` unless '
             '`SWARM_EXECUTOR=events` is set.')
-    if single and events:
-        ratio = single['cores_per_1000_cb_s'] / max(events['cores_per_1000_cb_s'], 1e-9)
-        cheaper = 'EventsExecutor' if ratio > 1 else 'SingleThreadedExecutor'
-        text += (f' Measured here, the EventsExecutor needs {ratio:.2f} times '
-                 f'{"less" if ratio > 1 else "more"} CPU per callback than the '
-                 f'SingleThreadedExecutor ({events["cores_per_1000_cb_s"]:.3f} vs '
-                 f'{single["cores_per_1000_cb_s"]:.3f} cores per 1000 callbacks/s), so on '
-                 f'CPU alone the {cheaper} is the better choice.')
-        if chosen == 'SingleThreadedExecutor' and ratio > 1:
-            text += (' It stays the default because in this rclpy (7.1) the '
+    if not (single and events):
+        return lines + [text]
+    ratio = single['cores_per_1000_cb_s'] / max(events['cores_per_1000_cb_s'], 1e-9)
+    events_cheaper = ratio > 1
+    change = abs(1.0 - 1.0 / ratio) * 100
+    text += (f' Measured here, the EventsExecutor needs {change:.0f} % '
+             f'{"less" if events_cheaper else "more"} CPU per callback than the '
+             f'SingleThreadedExecutor ({events["cores_per_1000_cb_s"]:.3f} vs '
+             f'{single["cores_per_1000_cb_s"]:.3f} cores per 1000 callbacks/s).')
+    for kind, r in (('SingleThreadedExecutor', single), ('EventsExecutor', events)):
+        if r['timer_rate_achieved'] < 0.95 * ex['rate_hz']:
+            text += (f' The {kind} fell behind: its timers fired at '
+                     f'{r["timer_rate_achieved"]:.1f} of {ex["rate_hz"]:g} Hz with '
+                     f'{r["cpu_cores"]:.2f} cores busy.')
+    check = ex.get('agents_check') or {}
+    ok = {k: v.get('works') for k, v in check.items()}
+    if 'single' in check and 'events' in check and None not in ok.values():
+        c = check['single']
+        text += (f' With the real agents (`scripts/launch_swarm.py --composed`, '
+                 f'{c["agents"]} agents, {c["duration_s"]:g} simulated seconds on `/clock`) '
+                 'the monitor heard ' + ' and '.join(
+                     f'{check[k]["agents_heard"]}/{check[k]["agents"]} agents moving '
+                     f'{fmt_num(check[k]["total_displacement"], 0)} m in total under the '
+                     f'{name}' for k, name in (('single', 'SingleThreadedExecutor'),
+                                               ('events', 'EventsExecutor'))) + '.')
+    if chosen == 'SingleThreadedExecutor' and events_cheaper:
+        if ok.get('events') is False:
+            text += (' So the SingleThreadedExecutor stays: the EventsExecutor is cheaper, '
+                     'but the agents do not run under it on sim time (the `make_executor` '
+                     'docstring reports the same for rclpy 7.1). Switching is worth it once '
+                     'that is understood and fixed; wall-clock runs can opt in with '
+                     '`SWARM_EXECUTOR=events`.')
+        elif ok.get('events') and ok.get('single'):
+            text += (' The agents run under both, so the numbers argue for making the '
+                     'EventsExecutor the default of `make_executor`.')
+        else:
+            text += (' It stays the default because, per the `make_executor` docstring, the '
                      "EventsExecutor's timers did not fire on `/clock` with `use_sim_time` "
-                     '(agents froze in `scripts/launch_swarm.py`, see the `make_executor` '
-                     'docstring), and every swarm here runs on sim time; this benchmark '
-                     'uses wall-clock timers. The numbers argue for switching once that is '
-                     'fixed or worked around (e.g. sim-time timers driven from the '
-                     "container's `/clock` callback); wall-clock runs can opt in with "
-                     '`SWARM_EXECUTOR=events` today.')
+                     'in rclpy 7.1 (not re-checked in this run: --executor-check-agents).')
+    elif chosen == 'EventsExecutor' and not events_cheaper:
+        text += ' On these numbers the SingleThreadedExecutor would be the cheaper default.'
     return lines + [text]
 
 
@@ -612,17 +677,24 @@ def write_markdown(path: pathlib.Path, results: dict) -> None:
     dirty = ' (with uncommitted changes in the working tree)' if m['git_dirty'] else ''
     lines = ['# Benchmarks', '',
              'Generated by `scripts/env.sh python benchmarks/run_all.py` '
-             f'({" ".join(c["argv"]) or "default arguments"}); do not edit by hand. '
+             f'({shlex.join(c["argv"]) or "default arguments"}); do not edit by hand. '
              'Raw figures: `benchmarks.json` next to this file.', '',
              f'Machine: {m["cpu_count"]} cores, Python {m["python"]}, {m["platform"]}; '
              f'load average {m["loadavg_start"][0]:.2f} at the start and '
              f'{m["loadavg_end"][0]:.2f} at the end; {m["date"]}; commit '
              f'`{m["git_commit"][:12]}`{dirty}.'
-             + (f' {c["note"]}' if c['note'] else ''), '',
-             f'Times are medians of {c["repeats"]} runs (DSDV: {c["dsdv_repeats"]} random '
-             'graph(s) per size); sizes scale the thesis scenario (50 agents in '
-             '100 m x 100 m, 314 m^2 formation, 20:20:10 types) at constant density.', '',
-             '## Scaling per algorithm', '']
+             + (f' {c["note"]}' if c['note'] else ''), '']
+    for u in results.get('updates', []):
+        u_dirty = ' with uncommitted changes' if u['git_dirty'] else ''
+        lines += [f'Re-measured later: {", ".join(u["sections"])}, on {u["date"]} (commit '
+                  f'`{u["git_commit"][:12]}`{u_dirty}; load average '
+                  f'{u["loadavg_start"][0]:.2f} at the start and {u["loadavg_end"][0]:.2f} '
+                  f'at the end) by `run_all.py {shlex.join(u["argv"])}`.'
+                  + (f' {u["note"]}' if u['note'] else ''), '']
+    lines += [f'Times are medians of {c["repeats"]} runs (DSDV: {c["dsdv_repeats"]} random '
+              'graph(s) per size); sizes scale the thesis scenario (50 agents in '
+              '100 m x 100 m, 314 m^2 formation, 20:20:10 types) at constant density.', '',
+              '## Scaling per algorithm', '']
     lines += scaling_table(results)
     if 'evaluator' in s:
         ev = s['evaluator']
@@ -714,6 +786,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help='nodes of bench_executor.py (default 50, --quick 5)')
     p.add_argument('--executor-seconds', type=float, default=None,
                    help='seconds per executor (default 5, --quick 1)')
+    p.add_argument('--executor-check-agents', type=int, default=10,
+                   help='composed agents run on sim time under each executor to check that '
+                        'they work (0: skip; skipped with --quick)')
     p.add_argument('--only', default='', help=f'comma list of sections out of {SECTIONS}')
     p.add_argument('--ros', action='store_true', help='also run the ROS swarm section (slow)')
     p.add_argument('--ros-sizes', default='20,50,100')
@@ -727,6 +802,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument('--note', default='', help='free text for the report, e.g. machine load')
     p.add_argument('--out', default=str(ROOT / 'docs'),
                    help='directory for benchmarks.md and benchmarks.json')
+    p.add_argument('--update', action='store_true',
+                   help='keep the sections of the benchmarks.json in --out that this run does '
+                        'not measure, e.g. --only executor --update or --only ros --update')
+    p.add_argument('--render', action='store_true',
+                   help='measure nothing: rewrite benchmarks.md from the benchmarks.json in '
+                        '--out (after a change of the report format)')
     args = p.parse_args(argv)
     args.argv = list(sys.argv[1:] if argv is None else argv)
     if args.eval_duration is None:
@@ -763,14 +844,57 @@ def validate(args: argparse.Namespace) -> tuple[list[int], list[int], list[str]]
         raise BenchError(f'--eval-beacons must be between 3 and --eval-agents '
                          f'({args.eval_agents})')
     only = [s for s in args.only.split(',') if s] or list(SECTIONS)
-    unknown = sorted(set(only) - set(SECTIONS))
+    unknown = sorted(set(only) - set(SECTIONS) - {'ros'})
     if unknown:
-        raise BenchError(f'--only: unknown section(s) {unknown}; choose from {SECTIONS}')
+        raise BenchError(f'--only: unknown section(s) {unknown}; choose from '
+                         f'{(*SECTIONS, "ros")}')
+    if 'ros' in only:
+        args.ros = True
     return sizes, ros_sizes, only
+
+
+def merge_previous(results: dict, out: pathlib.Path, measured: list[str]) -> dict:
+    """--update: the existing report with this run's sections replaced and the run logged."""
+    source = out / 'benchmarks.json'
+    try:
+        old = json.loads(source.read_text(encoding='utf-8'))
+        old_sections, old_config = old['sections'], old['config']
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise BenchError(f'--update needs a readable {source} ({type(exc).__name__}); run '
+                         'the suite without --update first') from None
+    sized = {'dsdv', 'trilateration', 'partition', 'cost_rows', 'assignment', 'medium'}
+    if sized & set(measured) and results['config']['sizes'] != old_config['sizes']:
+        raise BenchError(f'--update: --sizes {results["config"]["sizes"]} differs from the '
+                         f'existing report\'s {old_config["sizes"]}; use the same sizes')
+    merged = dict(old)
+    merged['sections'] = {**old_sections, **results['sections']}
+    merged['section_wall_s'] = {**old.get('section_wall_s', {}), **results['section_wall_s']}
+    merged['config'] = dict(old_config)
+    if 'ros' in measured:
+        merged['config'].update(ros=True, ros_sizes=results['config']['ros_sizes'],
+                                ros_duration=results['config']['ros_duration'])
+    m = results['machine']
+    merged['updates'] = [*old.get('updates', []), {
+        'sections': measured, 'argv': results['config']['argv'], 'date': m['date'],
+        'git_commit': m['git_commit'], 'git_dirty': m['git_dirty'],
+        'loadavg_start': m['loadavg_start'], 'loadavg_end': m['loadavg_end'],
+        'repeats': results['config']['repeats'], 'note': results['config']['note']}]
+    return merged
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    if args.render:
+        source = pathlib.Path(args.out) / 'benchmarks.json'
+        try:
+            results = json.loads(source.read_text(encoding='utf-8'))
+            write_markdown(source.with_suffix('.md'), results)
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            print(f'run_all: error: cannot render {source} ({type(exc).__name__}: {exc}); '
+                  'run the suite first', file=sys.stderr)
+            return 2
+        log(f'wrote {source.with_suffix(".md")} from {source}')
+        return 0
     try:
         sizes, ros_sizes, only = validate(args)
     except BenchError as exc:
@@ -809,8 +933,13 @@ def main(argv: list[str] | None = None) -> int:
             args.eval_duration, args.repeats, args.eval_agents, args.eval_beacons,
             'circle_314', args.seed))),
         ('executor', lambda: s.__setitem__('executor', bench_executor_section(
-            args.executor_nodes, 50.0, args.executor_seconds, args.repeats))),
+            args.executor_nodes, 50.0, args.executor_seconds, args.repeats,
+            0 if args.quick else args.executor_check_agents))),
     ]
+    if args.update and not (out / 'benchmarks.json').exists():
+        print(f'run_all: error: --update needs {out / "benchmarks.json"}; run the suite '
+              'without --update first', file=sys.stderr)
+        return 2
     for name, run in plan:
         wanted = name in only or (name == 'cost_rows' and 'assignment' in only)
         if not wanted:
@@ -822,18 +951,30 @@ def main(argv: list[str] | None = None) -> int:
     if args.ros:
         log('ros ...')
         t0 = time.perf_counter()
-        with tempfile.TemporaryDirectory(prefix='run_all_ros_') as work:
-            s['ros'] = bench_ros(ros_sizes, args.ros_duration, args.ros_timeout,
-                                 pathlib.Path(work))
+        work = pathlib.Path(tempfile.mkdtemp(prefix='run_all_ros_'))
+        s['ros'] = bench_ros(ros_sizes, args.ros_duration, args.ros_timeout, work)
+        if any('error' in row for row in s['ros']):
+            log(f'  a ROS run failed: its launcher.log and node logs are kept in {work}')
+        else:
+            shutil.rmtree(work, ignore_errors=True)
         results['section_wall_s']['ros'] = time.perf_counter() - t0
     results['machine']['loadavg_end'] = list(os.getloadavg())
     results['total_wall_s'] = time.perf_counter() - wall0
+    if args.update:
+        measured = [*results['section_wall_s']]
+        if 'cost_rows' in measured:
+            measured.append('assignment')
+        try:
+            results = merge_previous(results, out, measured)
+        except BenchError as exc:
+            print(f'run_all: error: {exc}', file=sys.stderr)
+            return 2
     results['targets'] = targets(results)
     results = jsonable(results)
     (out / 'benchmarks.json').write_text(json.dumps(results, indent=1) + '\n',
                                          encoding='utf-8')
     write_markdown(out / 'benchmarks.md', results)
-    log(f'\nTargets ({results["total_wall_s"]:.0f} s for the suite):')
+    log(f'\nTargets ({time.perf_counter() - wall0:.0f} s for this run):')
     for t in results['targets']:
         verdict = {True: 'met', False: 'MISSED', None: 'not measured'}[t['met']]
         value = 'n/a' if t['value'] is None else f'{t["value"]:.3g}'

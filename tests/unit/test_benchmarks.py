@@ -30,11 +30,14 @@ def _positive(value) -> bool:
     return isinstance(value, (int, float)) and math.isfinite(value) and value > 0
 
 
+def _run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(RUN_ALL), *args], cwd=str(ROOT),
+                          capture_output=True, text=True, timeout=110)
+
+
 @pytest.mark.timeout(120)
 def test_tiny_suite_writes_every_section(tmp_path):
-    proc = subprocess.run([sys.executable, str(RUN_ALL), '--sizes', '10', '--repeats', '1',
-                           '--quick', '--out', str(tmp_path)], cwd=str(ROOT),
-                          capture_output=True, text=True, timeout=110)
+    proc = _run('--sizes', '10', '--repeats', '1', '--quick', '--out', str(tmp_path))
     assert proc.returncode == 0, proc.stderr[-2000:]
     data = json.loads((tmp_path / 'benchmarks.json').read_text())
     machine = data['machine']
@@ -62,14 +65,28 @@ def test_tiny_suite_writes_every_section(tmp_path):
     md = (tmp_path / 'benchmarks.md').read_text()
     assert md.startswith('# Benchmarks') and '| 10 agents |' in md
     assert 'What we chose and why' in md and '## Targets' in md
+    # --update re-measures one section and keeps the others; --render rewrites the report
+    proc = _run('--sizes', '10', '--repeats', '1', '--quick', '--only', 'medium', '--update',
+                '--out', str(tmp_path))
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    merged = json.loads((tmp_path / 'benchmarks.json').read_text())
+    assert set(merged['sections']) == set(sections)
+    assert merged['sections']['dsdv'] == sections['dsdv']
+    assert [u['sections'] for u in merged['updates']] == [['medium']]
+    md = (tmp_path / 'benchmarks.md').read_text()
+    assert 'Re-measured later: medium' in md
+    (tmp_path / 'benchmarks.md').unlink()
+    assert _run('--render', '--out', str(tmp_path)).returncode == 0
+    assert (tmp_path / 'benchmarks.md').read_text() == md
 
 
-def test_bad_sizes_is_one_line_error(tmp_path):
-    proc = subprocess.run([sys.executable, str(RUN_ALL), '--sizes', '50,abc', '--out',
-                           str(tmp_path)], cwd=str(ROOT), capture_output=True, text=True,
-                          timeout=60)
+def test_bad_arguments_are_one_line_errors(tmp_path):
+    proc = _run('--sizes', '50,abc', '--out', str(tmp_path))
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
         "run_all: error: --sizes must be integers >= 10 separated by commas, like "
         "50,200,1000 (got '50,abc')"]
+    proc = _run('--only', 'medium', '--update', '--out', str(tmp_path))
+    assert proc.returncode == 2 and proc.stderr.count('\n') == 1
+    assert proc.stderr.startswith('run_all: error: --update needs ')
     assert not (tmp_path / 'benchmarks.json').exists()
