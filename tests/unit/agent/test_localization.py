@@ -240,7 +240,8 @@ def test_modes_lost_return_home_and_back():
     np.testing.assert_allclose(loc.home, (5.0, 5.0))
     assert loc.localize(18.0, _beacons(p, 4)) == Mode.NORMAL
     assert loc.missed_localizations == 0
-    assert loc.stats == {'localizations': 2, 'misses': 4, 'rejected': 0, 'gated': 0}
+    assert loc.stats == {'localizations': 2, 'misses': 4, 'rejected': 0, 'gated': 0,
+                         'relocalizations': 0, 'partial': 0}
     np.testing.assert_allclose(loc.position, p, atol=0.2)
 
 
@@ -277,7 +278,8 @@ def test_mirror_fix_is_gated_and_the_prior_side_chosen():
 
     With its prior the agent keeps the true side (trilateration picks the fit nearer
     the prior); a fix far outside the filter's uncertainty is gated at most
-    ``max_gated`` times in a row, then accepted (the filter may be the one wrong).
+    ``max_gated`` times in a row; when the next one agrees with them, the filter was
+    the one wrong and relocalizes.
     """
     beacons = np.array([[-3.0, 0.5], [-1.0, -2.6], [-3.2, -2.0]])
     truth = np.array([1.8, -0.75])
@@ -293,6 +295,116 @@ def test_mirror_fix_is_gated_and_the_prior_side_chosen():
     assert loc.stats['gated'] == loc.config.max_gated
     loc.localize(3.0 * (loc.config.max_gated + 1), far)
     assert np.hypot(*(loc.position - truth)) > 1.0, 'a persistent fix must win in the end'
+    assert loc.stats['relocalizations'] == 1
+
+
+RING = np.array([[12.0 * np.cos(a), 12.0 * np.sin(a)] for a in (0.3, 2.4, 4.4)])
+
+
+def _ring_fix(p, std: float = 0.5):
+    return [(b, float(np.hypot(*(b - np.asarray(p)))), std) for b in RING]
+
+
+def test_scattered_fixes_never_move_a_confident_filter():
+    """Gated fixes that disagree with each other are noise, not evidence.
+
+    The filter sits at the truth (0.3 m). Fixes 25-25.4 m away in ever different
+    directions, good geometry (0.5 m ranges: each fix about 0.4 m): every one is far
+    outside the chi-square gate, and any two are farther apart than a robot at 1 m/s
+    drives between them (at least 22 m in at most 9 s), so over 12 ticks none is taken,
+    however many are gated in a row.
+    """
+    truth = np.array([1.0, -2.0])
+    loc = Localizer(LocalizationConfig(initial_position_std=0.3), truth)
+    for k in range(12):
+        a = 2.4 * k
+        wrong = truth + (25.0 + 0.2 * (k % 3)) * np.array([np.cos(a), np.sin(a)])
+        assert loc.localize(3.0 * (k + 1), _ring_fix(wrong)) == Mode.NORMAL
+    assert loc.stats['gated'] == 12 and loc.stats['relocalizations'] == 0
+    np.testing.assert_allclose(loc.position, truth, atol=1e-9)
+
+
+def test_consistent_fixes_reinitialize_a_wrong_filter_without_moving_its_velocity():
+    """The filter is 15 m off (dead reckoning gone wrong) and confident (0.3 m).
+
+    The agent really drives east at 0.5 m/s, the filter knows that speed from the IMU,
+    and the fixes follow the true track, each within a robot's reach of the others.
+    After ``max_gated`` gated fixes the next reinitializes the filter: the position is
+    the fix's, the velocity is still 0.5 m/s east (a Kalman update with a 15 m
+    innovation would have moved it through the position-velocity correlation: the
+    thesis's robot would then drive off), and the following fixes are taken again.
+    """
+    config = LocalizationConfig(initial_position_std=0.3)
+    velocity = np.array([0.5, 0.0])
+    loc = Localizer(config, (15.0, 0.0), initial_velocity=velocity)
+    loc.kf.P[2:4, 2:4] = np.eye(2) * 0.01 ** 2
+    rng = np.random.default_rng(4)
+    t = 0.0
+    for tick in range(1, config.max_gated + 4):
+        for _ in range(30):
+            t += 0.1
+            loc.predict(t, rng.normal(0.0, 0.01, 2))
+        truth = velocity * t
+        ranges = [(b, r + rng.normal(0.0, 0.3), 0.3) for b, r, _ in _ring_fix(truth)]
+        loc.localize(t, ranges)
+        if tick <= config.max_gated:
+            assert np.hypot(*(loc.position - truth)) > 14.0
+        if tick == config.max_gated + 1:
+            assert np.hypot(*(loc.velocity - velocity)) < 0.01
+    assert loc.stats == {'localizations': 3, 'misses': 0, 'rejected': 0,
+                         'gated': config.max_gated, 'relocalizations': 1, 'partial': 0}
+    assert np.hypot(*(loc.position - velocity * t)) < 1.0
+    assert np.hypot(*(loc.velocity - velocity)) < 0.15
+
+
+def _runaway(max_gated: int, ticks: int = 12) -> tuple[float, float]:
+    """A standing robot whose filter believes, precisely, that it drives at 0.5 m/s."""
+    config = LocalizationConfig(initial_position_std=0.3, max_gated=max_gated)
+    loc = Localizer(config, (0.0, 0.0), initial_velocity=(0.5, 0.0))
+    loc.kf.P[2:, 2:] = np.eye(4) * 1e-6
+    rng = np.random.default_rng(7)
+    t = 0.0
+    for _ in range(ticks):
+        for _ in range(30):
+            t += 0.1
+            loc.predict(t, rng.normal(0.0, 0.01, 2))
+        loc.localize(t, [(b, r + rng.normal(0.0, 0.3), 0.3) for b, r, _ in _ring_fix((0, 0))])
+    return float(np.hypot(*loc.position)), float(np.hypot(*loc.velocity))
+
+
+def test_a_runaway_filter_is_caught_by_the_fixes():
+    """The failure seen through ROS: velocity (or bias) wrong while the covariance stays
+    small, dead reckoning runs away, every fix is gated and the estimate ends hundreds
+    of metres off. Fixes that agree with each other restart the filter, and within 12
+    ticks (36 s) it is back on the standing robot; gating forever leaves it 17 m off
+    and still driving."""
+    error, speed = _runaway(LocalizationConfig().max_gated)
+    assert error < 1.0 and speed < 0.15, (error, speed)
+    error, speed = _runaway(max_gated=10 ** 6)
+    assert error > 15.0 and speed > 0.4, (error, speed)
+
+
+def test_fix_across_a_beacon_line_updates_along_the_line_only():
+    """Three beacons nearly in a row (5 cm off a 22 m line) and the agent 0.1 m off
+    it: the ranges fix the position along the line to 0.2 m but leave it across the
+    line to 14 m (beyond ``max_fix_std``, where the linearised fix no
+    longer describes the mirror and fold solutions). The filter, 2 m off in both axes
+    with a 3 m deviation, takes the along-line component only: x is corrected to the
+    fix's precision, y stays where the IMU put it, and the tick is a localization.
+    """
+    beacons = np.array([[-10.0, 0.0], [-2.0, 0.05], [12.0, -0.05]])
+    truth = np.array([4.0, 0.1])
+    ranges = np.linalg.norm(beacons - truth, axis=1)
+    fix = trilaterate(beacons, ranges, initial=truth, range_std=0.3)
+    worst = float(np.sqrt(np.linalg.eigvalsh(fix.covariance)[-1]))
+    assert worst > 2.5 * LocalizationConfig().max_fix_std
+
+    loc = Localizer(LocalizationConfig(initial_position_std=3.0), truth + [2.0, 2.0])
+    assert loc.localize(3.0, [(b, r, 0.3) for b, r in zip(beacons, ranges)]) == Mode.NORMAL
+    assert loc.stats['partial'] == 1 and loc.stats['localizations'] == 1
+    assert abs(loc.position[0] - truth[0]) < 0.1
+    assert abs(loc.position[1] - (truth[1] + 2.0)) < 0.1
+    assert np.sqrt(loc.kf.P[0, 0]) < 0.2 and np.sqrt(loc.kf.P[1, 1]) > 2.9
 
 
 def _standing_still_run(estimate_bias: bool, seed: int) -> tuple[float, float]:

@@ -111,6 +111,11 @@ def main(args=None) -> None:
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except RuntimeError:
+        # A message taken while Ctrl-C shuts the context down fails to convert
+        # (ros2/rclpy#848): a shutdown artefact. While running, a RuntimeError is real.
+        if rclpy.ok():
+            raise
     finally:
         container.destroy_all()
         container.destroy_node()

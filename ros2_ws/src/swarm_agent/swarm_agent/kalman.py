@@ -93,3 +93,16 @@ class KalmanFilter:
         self.x = self.x + k @ (np.asarray(z, float) - self.x[:2])
         ikh = np.eye(len(self.x)) - k @ h
         self.P = ikh @ self.P @ ikh.T + k @ r @ k.T  # Joseph form
+
+    def update_along(self, direction, z: float, var: float) -> None:
+        """Update with the position's component along the unit vector ``direction``.
+
+        A fix that constrains one direction only (eq. 3.34 with H = u^T [I 0]): the
+        scalar case of ``update_position``, leaving the other direction to the IMU.
+        """
+        h = np.asarray(direction, float) @ self._h
+        s = float(h @ self.P @ h) + float(var)
+        k = self.P @ h / s
+        self.x = self.x + k * (float(z) - float(h @ self.x))
+        ikh = np.eye(len(self.x)) - np.outer(k, h)
+        self.P = ikh @ self.P @ ikh.T + float(var) * np.outer(k, k)

@@ -22,6 +22,7 @@ from swarm_agent.trilateration import DegenerateGeometryError, trilaterate
 
 LOG = logging.getLogger(__name__)
 MG = 9.80665e-3  # m/s^2 per milli-g
+GATE_1DOF = 10.83  # chi-square (1 dof, 99.9 %)
 
 
 class Mode(enum.IntEnum):
@@ -43,8 +44,10 @@ class LocalizationConfig:
     misses_before_home: int = 3
     initial_position_std: float = 1.0     # m
     max_residual: float = 3.0             # m: worse trilaterations are rejected
+    max_fix_std: float = 5.0              # m: less certain fix axes are not used
     gate: float = 13.8                    # chi-square (2 dof, 99.9 %) innovation gate
-    max_gated: int = 3                    # after this many gated fixes in a row, accept
+    max_gated: int = 3                    # then gated fixes that agree reinitialize
+    max_speed: float = 1.0                # m/s: the robots' reach between two fixes
 
 
 class Localizer:
@@ -61,8 +64,10 @@ class Localizer:
         self.missed_localizations = 0
         self.home = np.asarray(home if home is not None else initial_position, float)
         self._t: float | None = None
-        self.stats = {'localizations': 0, 'misses': 0, 'rejected': 0, 'gated': 0}
-        self._gated_in_row = 0
+        self.stats = {'localizations': 0, 'misses': 0, 'rejected': 0, 'gated': 0,
+                      'relocalizations': 0, 'partial': 0}
+        # Fixes gated in a row: (fix, its covariance, its time).
+        self._gated: list[tuple[np.ndarray, np.ndarray, float]] = []
 
     @property
     def position(self) -> np.ndarray:
@@ -137,25 +142,97 @@ class Localizer:
                 self.stats['rejected'] += 1
             else:
                 z = fix.position + shift
-                if (fix.residual <= self.config.max_residual
-                        and self.kf.innovation_distance(z, fix.covariance) > self.config.gate
-                        and self._gated_in_row < self.config.max_gated):
-                    # A fix far outside the filter's and the fix's own uncertainty (a
-                    # mirror solution, a beacon that moved unannounced): skip it, but
-                    # only a few times in a row, in case the filter is the one wrong.
-                    self._gated_in_row += 1
-                    self.stats['gated'] += 1
+                worst_std = float(np.sqrt(np.linalg.eigvalsh(fix.covariance)[-1]))
+                if fix.residual > self.config.max_residual:
+                    self.stats['rejected'] += 1
+                elif worst_std > self.config.max_fix_std:
+                    self._update_along_beacon_line(z, fix.covariance)
                     return self.mode
-                if fix.residual <= self.config.max_residual:
-                    self._gated_in_row = 0
+                elif self.kf.innovation_distance(z, fix.covariance) > self.config.gate:
+                    self._gate(t, z, fix.covariance)
+                    return self.mode
+                else:
+                    self._gated.clear()
                     self.kf.update_position(z, fix.covariance)
-                    self.mode = Mode.NORMAL
-                    self.missed_localizations = 0
-                    self.stats['localizations'] += 1
+                    self._localized()
                     return self.mode
-                self.stats['rejected'] += 1
         self.missed_localizations += 1
         self.stats['misses'] += 1
         home = self.missed_localizations >= self.config.misses_before_home
         self.mode = Mode.RETURN_HOME if home else Mode.LOST
         return self.mode
+
+    def _localized(self) -> None:
+        self.mode = Mode.NORMAL
+        self.missed_localizations = 0
+        self.stats['localizations'] += 1
+
+    def _update_along_beacon_line(self, z: np.ndarray, cov: np.ndarray) -> None:
+        """A fix determined along one direction only: use that direction alone.
+
+        Beacons nearly in line as seen from the agent barely constrain the position
+        across that line. The fix's covariance is the linearisation at the solution,
+        valid while the range circles' curvature over one deviation d stays below the
+        range noise, d^2 / (2 r) < sigma: 4-7 m for 10-25 m ranges and 1 m of noise.
+        Beyond ``max_fix_std`` the solution across the line can sit on a fold or on the
+        mirror image of the agent, with a covariance that does not describe it, so only
+        the well-determined component along the line updates the filter (gated at
+        chi-square 1 dof, 99.9 %); the IMU carries the other.
+        """
+        values, vectors = np.linalg.eigh(cov)
+        u, var = vectors[:, 0], float(values[0])
+        innovation = float(u @ (z - self.position))
+        if innovation ** 2 / (float(u @ self.kf.P[:2, :2] @ u) + var) > GATE_1DOF:
+            self.stats['gated'] += 1
+            return
+        self.kf.update_along(u, float(u @ z), var)
+        self.stats['partial'] += 1
+        self._localized()
+
+    def _gate(self, t: float, z: np.ndarray, cov: np.ndarray) -> None:
+        """A fix far outside the filter's and its own uncertainty.
+
+        Either the fix is wrong (a mirror solution, a beacon that moved unannounced)
+        or the filter is: a velocity or bias estimate gone wrong makes dead reckoning
+        run away while the filter's covariance, which only knows the IMU's white noise,
+        stays small, and then every later fix is gated too. One fix cannot tell;
+        fixes that keep agreeing with each other can. After ``max_gated`` gated fixes
+        in a row, one that agrees with all of them reinitializes the filter.
+
+        Agreement must not lean on the filter (its dead-reckoned displacement is what
+        may be wrong), so it is physical: two fixes taken dt apart agree when their
+        distance is within the robot's reach, ``max_speed`` * dt, plus the chi-square
+        gate on their summed covariances. Fixes that scatter farther never move the
+        filter: they are noise, and the agent dead-reckons on.
+        """
+        reach = [self.config.max_speed * (t - ti) for _, _, ti in self._gated]
+        consistent = all(
+            max(float(np.hypot(*(z - zi))) - r, 0.0) ** 2
+            <= self.config.gate * float(np.linalg.eigvalsh(cov + ci)[-1])
+            for (zi, ci, _), r in zip(self._gated, reach))
+        if len(self._gated) >= self.config.max_gated and consistent:
+            self._gated.clear()
+            self._reinitialize(z, cov)
+            return
+        self.stats['gated'] += 1
+        self._gated.append((z.copy(), np.asarray(cov, float).copy(), t))
+        del self._gated[:-self.config.max_gated]
+
+    def _reinitialize(self, z: np.ndarray, cov: np.ndarray) -> None:
+        """Restart the filter at the fix: position and covariance from the fix; velocity
+        and bias keep their values but not their claimed precision (the divergence
+        shows they may be wrong), so the next fixes correct them. A plain Kalman update
+        with a tens-of-metres innovation would instead move the velocity through the
+        position-velocity correlation and drive a standing robot across the field.
+        """
+        kf = self.kf
+        kf.x = kf.x.copy()
+        kf.x[:2] = z
+        variances = np.zeros(len(kf.x))
+        variances[2:4] = np.maximum(kf.P.diagonal()[2:4], (0.5 * self.config.max_speed) ** 2)
+        variances[4:] = np.maximum(kf.P.diagonal()[4:], self.config.accel_bias_max ** 2)
+        p = np.diag(variances)
+        p[:2, :2] = cov
+        kf.P = p
+        self.stats['relocalizations'] += 1
+        self._localized()
