@@ -6,7 +6,7 @@ ENV := scripts/env.sh
 OUT ?= results/demo
 PYTEST_ARGS ?=
 
-.PHONY: bootstrap test test-fast demo lint clean
+.PHONY: bootstrap test test-fast demo lint clean toolchain
 
 bootstrap:
 	@bash scripts/bootstrap.sh
@@ -19,6 +19,11 @@ test-fast: bootstrap
 
 demo: bootstrap
 	$(ENV) python scripts/demo.py --out $(OUT)
+
+# The PIC toolchain of firmware/ (sdcc pic14 built from Debian's source into a cache,
+# gputils, gpsim, the PIC16F690 device files); without it the PIC and gpsim tests skip.
+toolchain:
+	@bash scripts/install_pic_toolchain.sh
 
 lint: bootstrap
 	$(ENV) ruff check .
