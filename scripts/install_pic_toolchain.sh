@@ -61,7 +61,7 @@ if [ -n "$missing" ]; then
 fi
 
 if sdcc_ok && device_ok; then
-  say "ready: $("$PREFIX/bin/sdcc" --version | head -1) in $PREFIX; $(gpsim --version | head -1)"
+  say "ready: $("$PREFIX/bin/sdcc" --version | head -1) in $PREFIX; $(gpsim --version 2>&1 | head -1)"
   exit 0
 fi
 

@@ -2,26 +2,21 @@
 
 from __future__ import annotations
 
-import pathlib
-import shutil
+import re
 import subprocess
 
+import pic_toolchain
 import pytest
 
-FIRMWARE = pathlib.Path(__file__).resolve().parents[3] / 'firmware'
 
-
-def _sdcc_has_pic14() -> bool:
-    if shutil.which('sdcc') is None or shutil.which('gplink') is None:
-        return False
-    out = subprocess.run(['sdcc', '--version'], capture_output=True, text=True).stdout
-    return 'pic14' in out
-
-
-@pytest.mark.skipif(not _sdcc_has_pic14(), reason='needs sdcc with the pic14 port and '
-                    'gputils; Debian builds sdcc without pic14 (see firmware/PROTOCOL.md)')
+@pytest.mark.skipif(pic_toolchain.missing() is not None,
+                    reason=str(pic_toolchain.missing()))
 def test_pic_build_fits_the_chip(tmp_path):
-    result = subprocess.run(['make', '-C', str(FIRMWARE), 'pic', f'PIC_DIR={tmp_path}'],
-                            capture_output=True, text=True)
+    result = subprocess.run(['make', '-C', str(pic_toolchain.FIRMWARE), 'pic',
+                             f'PIC_DIR={tmp_path}'], capture_output=True, text=True)
     assert result.returncode == 0, result.stdout + result.stderr
-    assert 'flash:' in result.stdout and 'RAM:' in result.stdout
+    flash = re.search(r'flash: (\d+) of 4096 words', result.stdout)
+    ram = re.search(r'RAM:\s+(\d+) of 256 bytes', result.stdout)
+    assert flash and ram, result.stdout
+    assert int(flash.group(1)) <= 4096 and int(ram.group(1)) <= 256
+    assert (tmp_path / 'swarm_robot.hex').stat().st_size > 0
