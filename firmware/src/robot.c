@@ -14,7 +14,12 @@
 
 robot_t robot;
 
-static uint8_t tx_sum;
+/* Call depth: the PIC16F690 has an 8-level hardware stack, shared by the main loop and
+ * the interrupt (its entry plus isr -> robot_tick -> stepper_tick: 3 levels, or isr ->
+ * robot_rx_isr -> xp_feed). So the main loop must stay within 5 levels below main():
+ * frames go out from robot_poll -> send_payload -> put_escaped -> hal_uart_put, and
+ * handle_frame only fills robot.tx with the acknowledgement (mixer_mix -> sin_q15 ->
+ * library multiply is the deepest main-loop chain). test_pic_build checks the depth. */
 
 static void put_escaped(uint8_t byte)
 {
@@ -26,42 +31,41 @@ static void put_escaped(uint8_t byte)
     hal_uart_put(byte);
 }
 
-static void put_data(uint8_t byte)
-{
-    tx_sum += byte;
-    put_escaped(byte);
-}
-
-/* Send robot.tx[0..len) to robot.host in a 0x10 transmit request (frame id 0: no status). */
+/* Send robot.tx[0..len) to robot.host in a 0x10 transmit request (frame id 0: no status).
+ * The checksum is summed here, not in a put_data() helper: one stack level less. */
 static void send_payload(uint8_t len)
 {
     uint8_t i;
+    uint8_t sum;
     hal_uart_put(SWP_XBEE_START);
     put_escaped(0);
     put_escaped(SWP_TX_HEADER_LEN + len);
-    tx_sum = 0;
-    put_data(SWP_API_TX_REQUEST);
-    put_data(0);
+    put_escaped(SWP_API_TX_REQUEST);
+    put_escaped(0); /* frame id */
+    sum = (uint8_t)(SWP_API_TX_REQUEST + (SWP_ADDR16_UNKNOWN >> 8) + (SWP_ADDR16_UNKNOWN & 0xFF));
     for (i = 0; i < 8; i++) {
-        put_data(robot.host[i]);
+        sum += robot.host[i];
+        put_escaped(robot.host[i]);
     }
-    put_data(SWP_ADDR16_UNKNOWN >> 8);
-    put_data(SWP_ADDR16_UNKNOWN & 0xFF);
-    put_data(0); /* broadcast radius: maximum hops */
-    put_data(0); /* options */
+    put_escaped(SWP_ADDR16_UNKNOWN >> 8);
+    put_escaped(SWP_ADDR16_UNKNOWN & 0xFF);
+    put_escaped(0); /* broadcast radius: maximum hops */
+    put_escaped(0); /* options */
     for (i = 0; i < len; i++) {
-        put_data(robot.tx[i]);
+        sum += robot.tx[i];
+        put_escaped(robot.tx[i]);
     }
-    put_escaped(SWP_XBEE_CHECKSUM_OK - tx_sum);
+    put_escaped(SWP_XBEE_CHECKSUM_OK - sum);
 }
 
-static void send_ack(uint8_t seq, uint8_t type, uint8_t result)
+/* Put an acknowledgement in robot.tx; the caller sends it (send_payload(SWP_LEN_ACK)). */
+static uint8_t set_ack(uint8_t seq, uint8_t type, uint8_t result)
 {
     robot.tx[0] = SWP_MSG_ACK;
     robot.tx[1] = seq;
     robot.tx[2] = type;
     robot.tx[3] = result;
-    send_payload(SWP_LEN_ACK);
+    return 1;
 }
 
 static void set_fault(uint8_t flags)
@@ -87,8 +91,9 @@ static void apply(uint8_t run)
 
 /* Main loop: take the frame out of the parser's mailbox, then act on it. The mailbox
  * is released before anything is sent, so the interrupt can parse the next frame
- * while the (blocking) acknowledgement goes out. */
-static void handle_frame(void)
+ * while the (blocking) acknowledgement goes out. Returns 1 when robot.tx holds an
+ * acknowledgement to send. */
+static uint8_t handle_frame(void)
 {
     uint8_t len;
     uint8_t i;
@@ -98,7 +103,7 @@ static void handle_frame(void)
     uint16_t alpha;
     if (xp.buf[0] != SWP_API_RX_PACKET || xp.length < SWP_RX_HEADER_LEN + 2) {
         xp.ready = 0;
-        return; /* modem status, transmit status, or no message: nothing to do */
+        return 0; /* modem status, transmit status, or no message: nothing to do */
     }
     len = xp.length - SWP_RX_HEADER_LEN;
     for (i = 0; i < 8; i++) {
@@ -112,13 +117,11 @@ static void handle_frame(void)
     if (type == SWP_MSG_CMD_VEL) {
         if (len != SWP_LEN_CMD_VEL) {
             set_fault(SWP_FAULT_BAD_MSG);
-            send_ack(seq, type, SWP_ACK_BAD_LENGTH);
-            return;
+            return set_ack(seq, type, SWP_ACK_BAD_LENGTH);
         }
         if (alpha >= SWP_DIRECTION_FULL_TURN) {
             set_fault(SWP_FAULT_BAD_MSG);
-            send_ack(seq, type, SWP_ACK_BAD_VALUE);
-            return;
+            return set_ack(seq, type, SWP_ACK_BAD_VALUE);
         }
         if (mixer_mix(speed, alpha)) {
             set_fault(SWP_FAULT_RATE_LIMIT);
@@ -127,17 +130,15 @@ static void handle_frame(void)
     } else if (type == SWP_MSG_STOP) {
         if (len != SWP_LEN_STOP) {
             set_fault(SWP_FAULT_BAD_MSG);
-            send_ack(seq, type, SWP_ACK_BAD_LENGTH);
-            return;
+            return set_ack(seq, type, SWP_ACK_BAD_LENGTH);
         }
         apply(0);
     } else {
         set_fault(SWP_FAULT_BAD_MSG);
-        send_ack(seq, type, SWP_ACK_UNKNOWN_TYPE);
-        return;
+        return set_ack(seq, type, SWP_ACK_UNKNOWN_TYPE);
     }
     robot.last_cmd_seq = seq;
-    send_ack(seq, type, SWP_ACK_OK);
+    return set_ack(seq, type, SWP_ACK_OK);
 }
 
 void robot_init(void)
@@ -180,8 +181,8 @@ void robot_poll(void)
 {
     uint16_t age;
     uint8_t faults;
-    if (xp.ready) {
-        handle_frame();
+    if (xp.ready && handle_frame()) {
+        send_payload(SWP_LEN_ACK);
     }
     if (!robot.heartbeat_due) {
         return;

@@ -2,12 +2,16 @@
  * steps exactly r times per SWP_TICK_HZ ticks, evenly spread (Bresenham / DDS). */
 #include "stepper.h"
 
-/* Half-step sequence of a unipolar stepper on a ULN2003 (IN1..IN4 = bits 0..3). */
-static const uint8_t HALF_STEP[8] = { 0x01, 0x03, 0x02, 0x06, 0x04, 0x0C, 0x08, 0x09 };
+/* Half-step sequence of a unipolar stepper on a ULN2003 (IN1..IN4 = bits 0..3):
+ * 0x01 0x03 0x02 0x06 0x04 0x0C 0x08 0x09. Computed in stepper_tick, not read from a const
+ * table: sdcc's pic14 port reads code-space tables through a library call, one level of
+ * the 8-level hardware stack the timer interrupt cannot spare. Even phases drive coil
+ * phase/2, odd ones that coil and the next. */
 
 int16_t st_rate[3];
 uint16_t st_acc[3];
 uint8_t st_phase[3];
+uint8_t st_coils[3];
 #if !defined(__SDCC)
 int32_t st_position[3];
 #endif
@@ -19,6 +23,7 @@ void stepper_init(void)
         st_rate[i] = 0;
         st_acc[i] = 0;
         st_phase[i] = 0;
+        st_coils[i] = 0;
 #if !defined(__SDCC)
         st_position[i] = 0;
 #endif
@@ -30,9 +35,12 @@ void stepper_tick(void)
     uint8_t i;
     int16_t rate;
     uint16_t magnitude;
+    uint8_t phase;
+    uint8_t coil;
     for (i = 0; i < 3; i++) {
         rate = st_rate[i];
         if (rate == 0) {
+            st_coils[i] = 0; /* release the coils: no holding current while stopped */
             continue;
         }
         magnitude = rate < 0 ? (uint16_t)(-rate) : (uint16_t)rate;
@@ -51,13 +59,16 @@ void stepper_tick(void)
 #endif
             }
         }
+        phase = st_phase[i];
+        coil = (uint8_t)(1u << (phase >> 1));
+        if (phase & 1) {
+            coil |= (uint8_t)(((coil << 1) | (coil >> 3)) & 0x0F);
+        }
+        st_coils[i] = coil;
     }
 }
 
 uint8_t stepper_pattern(uint8_t ch)
 {
-    if (st_rate[ch] == 0) {
-        return 0; /* release the coils: no holding current while stopped */
-    }
-    return HALF_STEP[st_phase[ch]];
+    return st_coils[ch];
 }
