@@ -55,7 +55,16 @@ uint8_t mixer_mix(uint16_t speed, uint16_t alpha)
         while (angle >= SWP_DIRECTION_FULL_TURN) {
             angle -= SWP_DIRECTION_FULL_TURN;
         }
-        wheel = (uint16_t)((mul_u16(speed, sin_q15(angle, &negative))
+        /* sin_q15(angle) written out: one call level less (the PIC's 8-level stack) */
+        negative = 0;
+        if (angle >= 180) {
+            negative = 1;
+            angle -= 180;
+        }
+        if (angle > 90) {
+            angle = 180 - angle;
+        }
+        wheel = (uint16_t)((mul_u16(speed, SIN_TABLE[angle])
                             + (1UL << (SWP_SIN_SHIFT - 1))) >> SWP_SIN_SHIFT);
         {
             uint32_t steps = (mul_u16(wheel, SWP_STEPS_PER_UNIT_Q12)

@@ -18,8 +18,9 @@ robot_t robot;
  * the interrupt (its entry plus isr -> robot_tick -> stepper_tick: 3 levels, or isr ->
  * robot_rx_isr -> xp_feed). So the main loop must stay within 5 levels below main():
  * frames go out from robot_poll -> send_payload -> put_escaped -> hal_uart_put, and
- * handle_frame only fills robot.tx with the acknowledgement (mixer_mix -> sin_q15 ->
- * library multiply is the deepest main-loop chain). test_pic_build checks the depth. */
+ * handle_frame only fills robot.tx with the acknowledgement (robot_poll -> handle_frame
+ * -> mixer_mix -> code-table read, 2 library levels, is the deepest main-loop chain).
+ * tests/unit/bridge/test_gpsim.py runs the build in gpsim, which halts on an overflow. */
 
 static void put_escaped(uint8_t byte)
 {
@@ -107,7 +108,8 @@ static uint8_t handle_frame(void)
     }
     len = xp.length - SWP_RX_HEADER_LEN;
     for (i = 0; i < 8; i++) {
-        robot.host[i] = xp.buf[1 + i]; /* answer whoever commands us */
+        robot.host[i] = xp.buf[(uint8_t)(i + 1)]; /* answer whoever commands us; an
+                                                   * unsigned index (see xbee_parser.c) */
     }
     type = xp.buf[XP_MSG];
     seq = xp.buf[XP_MSG + 1];

@@ -84,7 +84,9 @@ uint8_t xp_feed(uint8_t byte)
         if (xp.index < XP_KEEP_HEAD) {
             xp.buf[xp.index] = byte;
         } else if (xp.index >= SWP_RX_HEADER_LEN) {
-            xp.buf[xp.index - (SWP_RX_HEADER_LEN - XP_KEEP_HEAD)] = byte;
+            /* unsigned index: sdcc's pic14 port mishandles a signed (int) index into an
+             * array above 0x80 (it sets IRP from the sum's bit 7; gpsim caught it) */
+            xp.buf[(uint8_t)(xp.index - (SWP_RX_HEADER_LEN - XP_KEEP_HEAD))] = byte;
         }
         xp.index++;
         xp.sum += byte;
