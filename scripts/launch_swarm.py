@@ -15,8 +15,9 @@ Every child is stopped, no orphans are left.
 
 Writes into --out: ``metrics.json`` (the keys of scripts/evaluate.py plus
 real_time_factor, max_localization_error, consensus_rounds, cpu and memory figures),
-``fleet.yaml``, ``logs/*.log`` and the figures ``trajectories.png``, ``mesh.png``,
-``localization_error.png`` and ``modes.png``.
+``fleet.yaml``, ``record.npz`` (the monitor's 2 Hz record: times, true positions and
+velocities, estimated positions, modes, goal ids), ``logs/*.log`` and the figures
+``trajectories.png``, ``mesh.png``, ``localization_error.png`` and ``modes.png``.
 
 One swarm over several hosts: run the same command on every host with the same
 ``--domain`` and ``--seed`` (so the same fleet), each with the agent ids it runs in
@@ -431,6 +432,7 @@ def main(argv: list[str] | None = None) -> int:
         children.stop_all()
         executor.shutdown()
         monitor_record = monitor.snapshot()
+        monitor_record['agent_ids'] = np.array(monitor.agent_ids)
         monitor_shapes = list(monitor.shapes)
         monitor_goals = list(monitor.goals)
         rounds = len(monitor.rounds_seen)
@@ -443,6 +445,8 @@ def main(argv: list[str] | None = None) -> int:
     from swarm_sim.report import run_report, write_metrics
 
     robots = sorted(fleet, key=lambda r: r.id)
+    # The 2 Hz record of truth and belief, for plots and post-mortems of one agent.
+    np.savez_compressed(out / 'record.npz', **monitor_record)
     shapes = [s for _, s in monitor_shapes] or [shape]
     metrics = run_report(out, monitor_record, [r.type for r in robots],
                          [r.is_beacon for r in robots], shapes, monitor_goals, extra={

@@ -7,7 +7,8 @@ runs is the real code: its ``Localizer`` propagates the Kalman filter with the I
 (``swarm_sim.sensors.ImuModel``: bias up to 0.1 mg, white noise 0.01 m/s^2, thesis
 4.2) and at every localization tick trilaterates against the beacons that are its
 direct radio neighbours, with TOA ranges from ``swarm_sim.medium.RadioMedium``. The
-beacons run their own ``Localizer`` with GPS fixes of 2 m (``GpsModel``), and an agent
+beacons run their own ``Localizer`` with GPS fixes of 2 m (``GpsModel``) and, parked,
+its zero-velocity update at the outer-loop rate as ``AgentBrain`` does; an agent
 uses the beacons' *estimates*, their uncertainty added to the range noise, exactly as
 ``AgentBrain._localize`` does with the positions heard in heartbeats.
 
@@ -37,6 +38,7 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from swarm_agent.brain import BrainConfig  # noqa: E402
 from swarm_agent.localization import LocalizationConfig, Localizer, Mode  # noqa: E402
 from swarm_sim.medium import MediumConfig, RadioMedium  # noqa: E402
 from swarm_sim.sensors import GpsModel, ImuModel  # noqa: E402
@@ -76,10 +78,13 @@ def run_trial(period: float, seed: int, duration: float, agents: int = 3,
     init_err = rng.normal(0.0, config.initial_position_std, (agents, 2))
     locs = [Localizer(config, p0[i] + init_err[i], initial_velocity=v0[i])
             for i in range(agents)]
-    beacon_locs = [Localizer(config, gps.measure(b)[0]) for b in beacon_pos]
+    # A beacon starts from one GPS fix, and its filter says how good that is.
+    first_fix = LocalizationConfig(period_s=period, initial_position_std=gps.std)
+    beacon_locs = [Localizer(first_fix, gps.measure(b)[0]) for b in beacon_pos]
     steps = int(round(duration / imu_period))
     every_gps = max(1, int(round(gps_period / imu_period)))
     every_loc = max(1, int(round(period / imu_period)))
+    every_outer = max(1, int(round(BrainConfig.outer_period_s / imu_period)))
     times = np.arange(steps + 1) * imu_period
     errors = np.zeros((steps + 1, agents))
     counters = {'localizations': 0, 'misses': 0, 'beacons_heard': []}
@@ -99,6 +104,9 @@ def run_trial(period: float, seed: int, duration: float, agents: int = 3,
         if k % every_gps == 0:
             for b, loc in zip(beacon_pos, beacon_locs):
                 loc.gps_update(t, *gps.measure(b))
+        if k % every_outer == 0:
+            for loc in beacon_locs:     # parked: AgentBrain's zero-velocity update
+                loc.stand_still()
         if k > 0 and k % every_loc == 0:
             medium.update_positions(ids, np.vstack([p, beacon_pos]))
             for i, loc in enumerate(locs):

@@ -26,6 +26,19 @@ def test_study_writes_plot_and_summary(tmp_path, capsys):
     assert '"periods"' in printed and 'period 3 s: max error' in printed
 
 
+def test_three_second_period_stays_within_one_and_a_half_metres():
+    """The issue's target: a max error below 1.5 m at the thesis's 3 s period (the
+    thesis reports below 3 m), over 5 seeds x 3 agents from the first fix on. It holds
+    because the beacons start with the 2 m covariance of their first GPS fix and,
+    parked, know they stand still (before both, the max was 1.53 m: the beacons'
+    first 2 m GPS fix was trusted to 1 m)."""
+    summary, _ = localization_study.study([3.0], seeds=5, duration=60.0, agents=3,
+                                          imu_period=0.02)
+    stats = summary['periods']['3']
+    assert stats['max_error'] < 1.5, stats
+    assert stats['rms_error'] < 0.5, stats
+
+
 @pytest.mark.parametrize('args', [['--seeds', '0'], ['--duration', '2'], ['--periods', '-1']])
 def test_bad_arguments_rejected(tmp_path, capsys, args):
     assert localization_study.main([*args, '--out', str(tmp_path)]) == 2

@@ -94,6 +94,9 @@ class BrainConfig:
     forces_speed_per_newton: float = 0.002  # m/s per N: forces method setpoint scaling
     hold_radius: float = 0.3             # m: within this of the goal the agent parks
     resume_radius: float = 0.8           # m: a parked agent moves again beyond this
+    # A parked robot (zero force) has stopped after this long (dry friction stops one at
+    # 0.5 m/s within a second); from then on its velocity is known to be zero.
+    stand_still_after_s: float = 2.0
     localization: LocalizationConfig = field(default_factory=LocalizationConfig)
     dsdv: DsdvConfig = field(default_factory=DsdvConfig)
     setpoint: SetpointParams = field(default_factory=SetpointParams)
@@ -175,6 +178,7 @@ class AgentBrain:
         self._setpoint = np.zeros(2)
         self._force = np.zeros(2)
         self._parked = False
+        self._parked_since: float | None = None
         self._parked_goal: tuple[int, int] = (-1, -1)   # (goal version, goal id)
         # Shape and goals
         self.shape: Shape | None = None
@@ -275,9 +279,13 @@ class AgentBrain:
             self._outer(t)
         self._outbox.extend(self.router.tick(t))
         if self._parked:
+            if self._parked_since is None:
+                self._parked_since = t
             self._force = np.zeros(2)
-        elif dt > 0.0:
-            self._force = self.loop.step(dt, self._setpoint, self.localizer.velocity)
+        else:
+            self._parked_since = None
+            if dt > 0.0:
+                self._force = self.loop.step(dt, self._setpoint, self.localizer.velocity)
         packets, self._outbox = self._outbox, []
         return BrainOutput(packets, self._force.copy(), self._setpoint.copy())
 
@@ -354,6 +362,9 @@ class AgentBrain:
     def _outer(self, t: float) -> None:
         """The 2 Hz loop: cost report, assignment, setpoint (3.2.2.2, 3.2.4)."""
         neighbours = self._fresh_neighbours(t)
+        if (self._parked_since is not None
+                and t - self._parked_since >= self.config.stand_still_after_s):
+            self.localizer.stand_still()
         mode = self.localizer.mode
         position = self.localizer.position
         if self.shape is None:

@@ -84,25 +84,28 @@ class KalmanFilter:
         y = np.asarray(z, float) - self.x[:2]
         return float(y @ np.linalg.solve(s, y))
 
-    def update_position(self, z, R) -> None:
-        """Measurement update with a position fix z (2,) of covariance R (eqs. 3.34-3.44)."""
-        h = self._h
-        r = np.asarray(R, float)
-        s = self.P[:2, :2] + r
-        k = self.P[:, :2] @ np.linalg.inv(s)
-        self.x = self.x + k @ (np.asarray(z, float) - self.x[:2])
+    def update(self, h: np.ndarray, z, R) -> None:
+        """Linear measurement z = H x + v, v ~ N(0, R) (eqs. 3.34-3.44, Joseph form)."""
+        h = np.atleast_2d(np.asarray(h, float))
+        r = np.atleast_2d(np.asarray(R, float))
+        s = h @ self.P @ h.T + r
+        k = self.P @ h.T @ np.linalg.inv(s)
+        self.x = self.x + k @ (np.atleast_1d(np.asarray(z, float)) - h @ self.x)
         ikh = np.eye(len(self.x)) - k @ h
-        self.P = ikh @ self.P @ ikh.T + k @ r @ k.T  # Joseph form
+        self.P = ikh @ self.P @ ikh.T + k @ r @ k.T
+
+    def update_position(self, z, R) -> None:
+        """Measurement update with a position fix z (2,) of covariance R."""
+        self.update(self._h, z, R)
 
     def update_along(self, direction, z: float, var: float) -> None:
         """Update with the position's component along the unit vector ``direction``.
 
-        A fix that constrains one direction only (eq. 3.34 with H = u^T [I 0]): the
-        scalar case of ``update_position``, leaving the other direction to the IMU.
+        A fix that constrains one direction only (H = u^T [I 0]), leaving the other
+        direction to the IMU.
         """
-        h = np.asarray(direction, float) @ self._h
-        s = float(h @ self.P @ h) + float(var)
-        k = self.P @ h / s
-        self.x = self.x + k * (float(z) - float(h @ self.x))
-        ikh = np.eye(len(self.x)) - np.outer(k, h)
-        self.P = ikh @ self.P @ ikh.T + float(var) * np.outer(k, k)
+        self.update(np.asarray(direction, float) @ self._h, z, var)
+
+    def update_velocity(self, z, R) -> None:
+        """Measurement update with a velocity z (2,) of covariance R (H = [0 I 0])."""
+        self.update(np.roll(self._h, 2, axis=1), z, R)

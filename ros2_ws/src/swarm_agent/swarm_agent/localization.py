@@ -48,6 +48,16 @@ class LocalizationConfig:
     gate: float = 13.8                    # chi-square (2 dof, 99.9 %) innovation gate
     max_gated: int = 3                    # then gated fixes that agree reinitialize
     max_speed: float = 1.0                # m/s: the robots' reach between two fixes
+    zero_velocity_std: float = 0.01       # m/s: a parked robot's velocity (see stand_still)
+
+
+def _ranges_only(beacons: np.ndarray, ranges: np.ndarray, std: float, fallback):
+    """The fix from the ranges alone (eqs. 3.8-3.17 and Gauss-Newton, no prior)."""
+    try:
+        free = trilaterate(beacons, ranges, range_std=std)
+    except (DegenerateGeometryError, ValueError):
+        return fallback
+    return free if np.all(np.isfinite(free.covariance)) else fallback
 
 
 class Localizer:
@@ -112,6 +122,20 @@ class Localizer:
         self.mode = Mode.NORMAL
         self.missed_localizations = 0
 
+    def stand_still(self) -> None:
+        """Zero-velocity update: the robot is parked (no force, held by dry friction).
+
+        Beyond the thesis, the classic zero-velocity update of inertial navigation. The
+        fixes carry slowly varying errors (a beacon's own estimate wanders by a metre
+        over tens of seconds under 2 m GPS noise), which a filter that only knows white
+        measurement noise reads as motion: a parked robot's velocity estimate then
+        reaches 0.1 m/s, its position runs off by metres between fixes, the parking
+        hysteresis is exceeded and the robot drives after its own error. A robot that
+        commands no force and has had time to stop knows it stands still.
+        """
+        std = self.config.zero_velocity_std
+        self.kf.update_velocity(np.zeros(2), np.eye(2) * std ** 2)
+
     def gps_update(self, t: float, position, std: float) -> None:
         """Absolute fix (beacons; camera poses on hardware)."""
         self.kf.update_position(position, np.eye(2) * std ** 2)
@@ -149,7 +173,12 @@ class Localizer:
                     self._update_along_beacon_line(z, fix.covariance)
                     return self.mode
                 elif self.kf.innovation_distance(z, fix.covariance) > self.config.gate:
-                    self._gate(t, z, fix.covariance)
+                    # Judge a suspicious fix by the ranges alone: from the prior, the
+                    # trilateration keeps the prior's side of a mirror ambiguity, and
+                    # the prior is what may be wrong (a filter locked on the mirror
+                    # image of the robot would only ever be confirmed).
+                    free = _ranges_only(pos, rng, std, fix)
+                    self._gate(t, free.position + shift, free.covariance)
                     return self.mode
                 else:
                     self._gated.clear()
