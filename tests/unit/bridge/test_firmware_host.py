@@ -108,6 +108,7 @@ def test_c_parser_and_python_decoder_agree_on_any_stream(firmware, chunks, data)
     assert counters['frames'] == len(frames) % 256
     assert counters['bad_checksums'] == py.stats.bad_checksums % 256
     assert counters['truncated'] == py.stats.truncated % 256
+    assert counters['oversize'] == py.stats.oversize % 256
     # and the last valid command decoded by Python is the one the board applies
     commands = []
     for f in frames:
@@ -191,3 +192,17 @@ def test_frames_are_parsed_in_the_interrupt_and_handed_over_through_a_mailbox(fi
     firmware.ticks(protocol.HEARTBEAT_MS)
     status = [m for _, m in board_messages(firmware.take_tx()) if isinstance(m, protocol.Status)]
     assert status and status[-1].faults & protocol.FAULT_BAD_FRAME and status[-1].bad_frames == 1
+
+
+def test_a_long_length_is_dropped_at_its_high_byte_by_both(firmware):
+    """Found by the stream test: a start, a high length byte of 1 (over the 18-byte
+    limit), then a whole frame. Both parsers drop the first frame as oversize at its
+    high byte (not truncated by the next start) and take the second."""
+    stream = b'~\x01' + command_frame(protocol.CmdVel(0, 0, 0))
+    firmware.reset()
+    firmware.feed(stream)
+    py = xbee.FrameDecoder(max_frame_data=18)
+    assert len(py.feed(stream)) == 1
+    counters = firmware.parser_counters()
+    assert (counters['frames'], counters['oversize'], counters['truncated']) == (1, 1, 0)
+    assert (py.stats.frames, py.stats.oversize, py.stats.truncated) == (1, 1, 0)

@@ -144,6 +144,11 @@ class FrameDecoder:
             return None
         if self._state == 'len_hi':
             self._length, self._state = byte << 8, 'len_lo'
+            if self._length > self.max_frame_data:
+                # Too long already (the firmware's 18-byte limit: any nonzero high
+                # byte): dropped here, as the firmware does, not at the low byte.
+                self.stats.oversize += 1
+                self._state = 'start'
         elif self._state == 'len_lo':
             self._length |= byte
             if not 0 < self._length <= self.max_frame_data:
