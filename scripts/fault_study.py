@@ -44,18 +44,17 @@ from typing import Any
 import evaluate
 import numpy as np
 from scipy.sparse.csgraph import connected_components, minimum_spanning_tree
-from shapely.geometry import box
 
 from swarm_agent.wire import INFINITE_HOPS
 from swarm_mission.partition import PartitionError
 from swarm_mission.robot_types import RobotTypeError
 from swarm_mission.shapes import ShapeError
 from swarm_sim.headless import HeadlessSwarm, Scenario, ScenarioError, TrialRecord
+from swarm_sim.medium import RadioMedium, SweepingWall
 from swarm_sim.metrics import min_separation_ratio, settling_time
 
 GOAL_TOLERANCE_M = 1.5      # a goal counts as covered by an agent of its type this close
 SAMPLE_EVERY = 4            # route tables sampled every 4th record frame (2 s)
-WALL_THICKNESS_M = 1.0
 LOSSES = (0, 10, 20, 30, 50)
 KILLS = (10, 30)
 RANGES = (12.0, 8.0, 5.0, 3.0)
@@ -135,16 +134,23 @@ class RouteMonitor:
 
 def count_routing_loops(swarm: HeadlessSwarm) -> int:
     """(source, destination) pairs whose next-hop chain revisits an agent."""
-    routers = {b.router.id: b.router for b in swarm.brains if b is not None}
+    return count_loops({b.router.id: {d: r.next_hop for d, r in b.router.table.items()
+                                      if r.hop_count < INFINITE_HOPS}
+                        for b in swarm.brains if b is not None})
+
+
+def count_loops(tables: dict[int, dict[int, int]]) -> int:
+    """Loops in next-hop tables: ``tables[a][d]`` is a's next hop of a finite route to d.
+
+    Counts the (source, destination) pairs whose chain of next hops revisits an agent.
+    """
     loops = 0
-    for source, router in routers.items():
-        for dest, route in router.table.items():
-            if route.hop_count >= INFINITE_HOPS:
-                continue
+    for source, table in tables.items():
+        for dest in table:
             seen = {source}
             current = source
             while current != dest:
-                hop = routers[current].next_hop(dest) if current in routers else None
+                hop = tables.get(current, {}).get(dest)
                 if hop is None:
                     break
                 if hop in seen:
@@ -180,21 +186,64 @@ def critical_range(positions: np.ndarray) -> float:
 
 
 # ---------------------------------------------------------------------------- faults
-def _set_range(range_m: float):
+def fault_plan(case: dict, config: dict, seed: int, ids: list[int], beacon_ids: list[int],
+               half_size: float) -> dict[str, Any]:
+    """What the case does and when, for the headless swarm and the ROS launcher alike.
+
+    ``removals``: [(time, [agent ids])]; ``settings``: [(time, name, value)] with the
+    names of ``swarm_sim.medium.RUNTIME_SETTINGS`` (sim_node's run-time parameters);
+    ``first``/``last``: time of the first fault and of the end of the last one.
+    """
+    kind, value = case['kind'], case['value']
+    t_fault = float(config['fault_time'])
+    rng = np.random.default_rng([seed, 10_007])
+    plan: dict[str, Any] = {'removals': [], 'settings': [], 'first': t_fault, 'last': t_fault}
+    if kind == 'loss':
+        plan.update(settings=[(0.0, 'loss', value)], first=0.0, last=0.0)
+    elif kind == 'kill':
+        count = max(1, int(round(value * len(ids))))
+        victims = rng.choice(ids, size=count, replace=False)
+        times = np.sort(rng.uniform(t_fault, t_fault + config['fault_window'], size=count))
+        plan.update(removals=[(float(t), [int(a)]) for t, a in zip(times, victims)],
+                    first=float(times[0]), last=float(times[-1]))
+    elif kind == 'beacons':
+        count = int(value) if value >= 1 else int(math.ceil(value * len(beacon_ids)))
+        victims = rng.choice(beacon_ids, size=count, replace=False) if count else []
+        plan['removals'] = [(t_fault, [int(a) for a in victims])]
+    elif kind == 'range':
+        plan['settings'] = [(t_fault, 'radio_range_m', float(value))]
+    elif kind == 'obstacle':
+        # A wall as long as the workspace sweeps across it at wall_speed, then vanishes.
+        speed = float(config['wall_speed'])
+        plan.update(settings=[(t_fault, 'radio_wall_speed_mps', speed)],
+                    last=t_fault + 2.0 * half_size / speed)
+    else:
+        raise ScenarioError(f'unknown fault kind {kind!r}')
+    return plan
+
+
+def apply_setting(medium: RadioMedium, name: str, value: float, t: float,
+                  half_size: float) -> None:
+    """One run-time setting of the medium, as sim_node applies its parameter."""
+    if name == 'loss':
+        medium.set_loss(value)
+    elif name == 'radio_range_m':
+        medium.set_range(value)
+    elif name == 'radio_wall_speed_mps':
+        medium.start_wall(SweepingWall(t, value, half_size) if value > 0 else None)
+    else:
+        raise ScenarioError(f'unknown medium setting {name!r}')
+
+
+def _setting_event(name: str, value: float):
     def apply(swarm: HeadlessSwarm, t: float) -> None:
-        swarm.medium.config.range_m = range_m
-        swarm.mission.events.append(f't={t:.1f} s: radio range {range_m:g} m')
+        apply_setting(swarm.medium, name, value, t, swarm.scenario.half_size)
+        swarm.mission.events.append(f't={t:.1f} s: {name} = {value:g}')
     return apply
 
 
-def _place_wall(x: float | None, half_length: float):
-    def apply(swarm: HeadlessSwarm, t: float) -> None:
-        obstacles = list(swarm.scenario.shape.obstacles)
-        if x is not None:
-            obstacles.append(box(x - WALL_THICKNESS_M / 2, -half_length,
-                                 x + WALL_THICKNESS_M / 2, half_length))
-        swarm.medium.set_obstacles(obstacles)
-    return apply
+def _move_wall(swarm: HeadlessSwarm, t: float) -> None:
+    swarm.medium.move_wall(t)
 
 
 def _observe(swarm: HeadlessSwarm, t: float) -> None:
@@ -204,53 +253,26 @@ def _observe(swarm: HeadlessSwarm, t: float) -> None:
 def configure_fault(swarm: HeadlessSwarm, case: dict, config: dict, seed: int
                     ) -> tuple[float, float]:
     """Schedule the case's fault and its observation window; return (first, last) time."""
-    first, last = _schedule_fault(swarm, case, config, seed)
+    sc = swarm.scenario
+    plan = fault_plan(case, config, seed, list(swarm.ids),
+                      [swarm.ids[i] for i in np.flatnonzero(swarm.is_beacon)], sc.half_size)
+    sc.removals = plan['removals']
+    events = []
+    for t, name, value in plan['settings']:
+        if t <= 0.0:
+            apply_setting(swarm.medium, name, value, 0.0, sc.half_size)
+        else:
+            events.append((t, _setting_event(name, value)))
+        if name == 'radio_wall_speed_mps':
+            # sim_node moves the wall with every link update; here every record period
+            steps = int((plan['last'] - t) / sc.record_period_s) + 1
+            events += [(t + k * sc.record_period_s, _move_wall) for k in range(steps + 1)]
     if case['kind'] != 'loss':
         # A settled swarm would otherwise stop 5 s after the fault, before a lost beacon
         # or a shorter range has shown its effect on localization.
-        swarm.scenario.events = [*swarm.scenario.events, (last + config['observe'], _observe)]
-    return first, last
-
-
-def _schedule_fault(swarm: HeadlessSwarm, case: dict, config: dict, seed: int
-                    ) -> tuple[float, float]:
-    """Removals or events of the case (loss is set on the medium); (first, last) time."""
-    sc = swarm.scenario
-    kind, value = case['kind'], case['value']
-    t_fault = float(config['fault_time'])
-    rng = np.random.default_rng([seed, 10_007])
-    if kind == 'loss':
-        swarm.medium.set_loss(value)
-        return 0.0, 0.0
-    if kind == 'kill':
-        count = max(1, int(round(value * swarm.n)))
-        victims = rng.choice(swarm.ids, size=count, replace=False)
-        times = np.sort(rng.uniform(t_fault, t_fault + config['fault_window'], size=count))
-        sc.removals = [(float(t), [int(a)]) for t, a in zip(times, victims)]
-        return float(times[0]), float(times[-1])
-    if kind == 'beacons':
-        beacons = [swarm.ids[i] for i in np.flatnonzero(swarm.is_beacon)]
-        count = int(value) if value >= 1 else int(math.ceil(value * len(beacons)))
-        victims = rng.choice(beacons, size=count, replace=False) if count else []
-        sc.removals = [(t_fault, [int(a) for a in victims])]
-        return t_fault, t_fault
-    if kind == 'range':
-        sc.events = [(t_fault, _set_range(value))]
-        return t_fault, t_fault
-    if kind == 'obstacle':
-        # A wall as long as the workspace sweeps across it at wall_speed, then vanishes.
-        half = sc.half_size
-        start, speed = -half, config['wall_speed']
-        sweep = 2.0 * half / speed
-        steps = int(sweep / sc.record_period_s)
-        events = [(t_fault + k * sc.record_period_s,
-                   _place_wall(start + k * sc.record_period_s * speed, half))
-                  for k in range(steps + 1)]
-        end = t_fault + (steps + 1) * sc.record_period_s
-        events.append((end, _place_wall(None, half)))
-        sc.events = events
-        return t_fault, end
-    raise ScenarioError(f'unknown fault kind {kind!r}')
+        events.append((plan['last'] + config['observe'], _observe))
+    sc.events = events
+    return plan['first'], plan['last']
 
 
 # ---------------------------------------------------------------------------- trial

@@ -7,22 +7,87 @@ each linked receiver independently, with probability ``1 - loss``, after the sen
 airtime (frames are serialised at ``bandwidth_bps`` per sender) plus ``latency_s``.
 TOA ranges to beacons that are direct neighbours are the true distance plus Gaussian
 noise of ``range_noise_std``.
+
+Faults at run time: ``set_loss``, ``set_range`` and a ``SweepingWall`` (a radio-opaque
+wall crossing the workspace, ``start_wall`` / ``move_wall``); ``RUNTIME_SETTINGS`` names
+the checks of the values sim_node accepts as run-time parameters.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 import heapq
+import math
 
 import numpy as np
 from scipy.spatial import cKDTree
 import shapely
-from shapely.geometry import Polygon
+from shapely.geometry import box, Polygon
 
 from swarm_agent.packet import BROADCAST, Packet
 
 FRAME_OVERHEAD_BYTES = 18  # XBee API frame + 802.15.4 header around the payload
+WALL_THICKNESS_M = 1.0
+
+
+def check_loss(loss: float) -> float:
+    """A packet loss probability, or ValueError."""
+    loss = float(loss)
+    if not 0.0 <= loss <= 1.0:
+        raise ValueError(f'packet loss must be in [0, 1], got {loss}')
+    return loss
+
+
+def check_range(range_m: float) -> float:
+    """A radio range in metres (finite, > 0), or ValueError."""
+    range_m = float(range_m)
+    if not (math.isfinite(range_m) and range_m > 0.0):
+        raise ValueError(f'radio range must be a positive number of metres, got {range_m}')
+    return range_m
+
+
+def check_wall_speed(speed: float) -> float:
+    """Speed of a sweeping wall in m/s (0: no wall, else > 0 and finite), or ValueError."""
+    speed = float(speed)
+    if not (math.isfinite(speed) and speed >= 0.0):
+        raise ValueError(f'wall speed must be 0 (no wall) or positive in m/s, got {speed}')
+    return speed
+
+
+# sim_node parameters that change the medium at run time, with the check of their value.
+RUNTIME_SETTINGS: dict[str, Callable[[float], float]] = {
+    'loss': check_loss, 'radio_range_m': check_range, 'radio_wall_speed_mps': check_wall_speed}
+
+
+def wall_polygon(x: float, half_length: float, thickness: float = WALL_THICKNESS_M) -> Polygon:
+    """A wall ``thickness`` wide along y in [-half_length, half_length], centred on x."""
+    return box(x - thickness / 2, -half_length, x + thickness / 2, half_length)
+
+
+@dataclass
+class SweepingWall:
+    """A radio-opaque wall crossing the workspace along +x (a fault: cuts links only).
+
+    Starts at ``x = -half_length`` at ``t0`` and moves at ``speed``; gone once past
+    ``+half_length``.
+    """
+
+    t0: float
+    speed: float
+    half_length: float
+    thickness: float = WALL_THICKNESS_M
+
+    def x_at(self, t: float) -> float | None:
+        """The wall's x at time t, None before it starts or after it has left."""
+        x = -self.half_length + self.speed * (t - self.t0)
+        if t < self.t0 or x > self.half_length:
+            return None
+        return x
+
+    def at(self, t: float) -> Polygon | None:
+        x = self.x_at(t)
+        return None if x is None else wall_polygon(x, self.half_length, self.thickness)
 
 
 @dataclass
@@ -54,8 +119,8 @@ class RadioMedium:
 
     def __init__(self, config: MediumConfig, rng: np.random.Generator,
                  obstacles: Sequence[Polygon] = ()) -> None:
-        if not 0.0 <= config.loss <= 1.0:
-            raise ValueError(f'packet loss must be in [0, 1], got {config.loss}')
+        check_loss(config.loss)
+        check_range(config.range_m)
         self.config = config
         self.rng = rng
         self.stats = MediumStats()
@@ -68,17 +133,46 @@ class RadioMedium:
         self._queue: list[tuple[float, int, int, Packet]] = []
         self._busy_until: dict[int, float] = {}
         self._counter = 0
+        self.wall: SweepingWall | None = None
+        self._wall_shape: Polygon | None = None
         self.set_obstacles(obstacles)
 
     def set_obstacles(self, obstacles: Sequence[Polygon]) -> None:
-        """Replace the obstacles that block line of sight."""
-        self.obstacles = [o for o in obstacles if o is not None and not o.is_empty]
+        """Replace the obstacles that block line of sight (a sweeping wall stays)."""
+        self.static_obstacles = [o for o in obstacles if o is not None and not o.is_empty]
+        self._rebuild_obstacles()
+
+    def _rebuild_obstacles(self) -> None:
+        self.obstacles = self.static_obstacles + (
+            [self._wall_shape] if self._wall_shape is not None else [])
         self._tree = shapely.STRtree(self.obstacles) if self.obstacles else None
 
     def set_loss(self, loss: float) -> None:
-        if not 0.0 <= loss <= 1.0:
-            raise ValueError(f'packet loss must be in [0, 1], got {loss}')
-        self.config.loss = loss
+        self.config.loss = check_loss(loss)
+
+    def set_range(self, range_m: float) -> None:
+        """Change the radio range; links follow at the next ``update_positions``."""
+        self.config.range_m = check_range(range_m)
+
+    def start_wall(self, wall: SweepingWall | None) -> None:
+        """Start (or, with None, remove) a sweeping wall; see ``move_wall``."""
+        self.wall = wall
+        self._wall_shape = None
+        self._rebuild_obstacles()
+
+    def move_wall(self, t: float) -> float | None:
+        """Place the sweeping wall at time t (before ``update_positions``); its x or None.
+
+        The wall is dropped once it has left the workspace.
+        """
+        if self.wall is None:
+            return None
+        x = self.wall.x_at(t)
+        self._wall_shape = self.wall.at(t)
+        if x is None and t >= self.wall.t0:
+            self.wall = None
+        self._rebuild_obstacles()
+        return x
 
     def disable_radio(self, agent_id: int) -> None:
         self._dead.add(int(agent_id))

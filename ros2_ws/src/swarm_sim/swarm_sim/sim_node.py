@@ -25,8 +25,12 @@ Topics
              ``/radio/tx`` (swarm_msgs/RadioPacket, from every agent)
              ``/swarm/kill`` (std_msgs/Int32MultiArray: robots to remove, a fault)
 
-Faults: ``/swarm/kill`` removes robots; the ``loss`` parameter changes packet loss at
-run time. Malformed force commands (NaN, huge) are rejected with one log line per robot.
+Faults: ``/swarm/kill`` removes robots; three parameters change the radio medium at run
+time (``swarm_sim.medium.RUNTIME_SETTINGS``; a bad value is refused with the reason):
+``loss`` (packet loss), ``radio_range_m`` (range cut) and ``radio_wall_speed_mps`` (> 0
+starts a radio-opaque wall sweeping across the workspace from x = -half_size at that
+speed, from the sim time it is set; it cuts links, not bodies; 0 removes it).
+Malformed force commands (NaN, huge) are rejected with one log line per robot.
 """
 
 from __future__ import annotations
@@ -64,7 +68,7 @@ from swarm_msgs.msg import (
     SwarmTruth,
 )
 from swarm_sim.fleet import FleetError, load_fleet
-from swarm_sim.medium import MediumConfig, RadioMedium
+from swarm_sim.medium import MediumConfig, RadioMedium, RUNTIME_SETTINGS, SweepingWall
 from swarm_sim.sensors import GpsModel, ImuModel
 
 PARAMETERS = {
@@ -87,6 +91,9 @@ PARAMETERS = {
     'agent_stall_s': (10.0, 'Wall seconds after which a silent agent is not waited for'),
     'max_force': (50.0, 'Force commands are clamped to this magnitude (N)'),
     'loss': (0.0, 'Radio packet loss probability (settable at run time)'),
+    'radio_range_m': (25.0, 'Radio range in metres, thesis 4.1 (settable at run time)'),
+    'radio_wall_speed_mps': (0.0, 'Speed of a radio-opaque wall sweeping the workspace '
+                                  'along +x from when set; 0: none (settable at run time)'),
     'half_size': (50.0, 'Workspace half width (m)'),
     'terrain': ('rough', 'pybullet terrain: rough or flat'),
     'seed': (0, 'Seed of the noise generators and the terrain'),
@@ -162,7 +169,10 @@ class SimNode(Node):
         self.backend = make_backend(p['backend'], self.fleet, types, obstacles,
                                     p['half_size'], p['terrain'], p['seed'], p['gui'],
                                     p['physics_rate_hz'])
-        self.medium = RadioMedium(MediumConfig(loss=p['loss']), self.rng, obstacles)
+        self.medium = RadioMedium(MediumConfig(loss=p['loss'], range_m=p['radio_range_m']),
+                                  self.rng, obstacles)
+        if p['radio_wall_speed_mps'] > 0:
+            self._start_wall(p['radio_wall_speed_mps'], 0.0)
         self.imu = ImuModel(self.n, self.rng)
         self.gps = GpsModel(self.rng, std=p['gps_std'])
         self.alive = np.ones(self.n, dtype=bool)
@@ -257,15 +267,30 @@ class SimNode(Node):
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         for param in params:
+            if param.name in RUNTIME_SETTINGS:
+                try:
+                    RUNTIME_SETTINGS[param.name](param.value)
+                except (TypeError, ValueError) as exc:
+                    return SetParametersResult(successful=False, reason=f'{param.name}: {exc}')
+        for param in params:
             if param.name == 'loss':
-                if not 0.0 <= float(param.value) <= 1.0:
-                    return SetParametersResult(successful=False,
-                                               reason='loss must be within [0, 1]')
                 self.medium.set_loss(float(param.value))
-                self.get_logger().info(f'packet loss set to {param.value}')
+                self.get_logger().info(f't={self.t:.1f} s: packet loss set to {param.value}')
+            elif param.name == 'radio_range_m':
+                self.medium.set_range(float(param.value))
+                self.get_logger().info(f't={self.t:.1f} s: radio range set to {param.value} m')
+            elif param.name == 'radio_wall_speed_mps':
+                self._start_wall(float(param.value), self.t)
             elif param.name == 'real_time_factor':
                 self._wall0, self._sim0 = time.monotonic(), self.t
         return SetParametersResult(successful=True)
+
+    def _start_wall(self, speed: float, t: float) -> None:
+        wall = SweepingWall(t, speed, float(self.params['half_size'])) if speed > 0 else None
+        self.medium.start_wall(wall)
+        self.get_logger().info(f't={t:.1f} s: ' + (
+            f'radio wall sweeping from x = {-wall.half_length:g} m at {speed} m/s'
+            if wall else 'radio wall removed'))
 
     # -- stepping
     def _on_tick(self) -> None:
@@ -310,6 +335,7 @@ class SimNode(Node):
         self.t = self.step_count * self.dt
         if self.step_count % max(1, int(round(0.05 / self.dt))) == 0:
             living = np.flatnonzero(self.alive)
+            self.medium.move_wall(self.t)
             self.medium.update_positions([self.ids[i] for i in living],
                                          self.backend.positions()[living])
 
