@@ -13,10 +13,19 @@ time, once the swarm has stayed settled (eq. 4.1) for ``--settle-hold`` seconds 
 the last shape change, on Ctrl-C, or when a node crashes (its log tail is printed).
 Every child is stopped, no orphans are left.
 
+Faults at given sim times: ``--remove T:IDS`` removes robots (``/swarm/kill``);
+``--set-sim T:NAME=VALUE`` sets a run-time parameter of the sim node with a parameter
+client (``loss``, ``radio_range_m``, ``radio_wall_speed_mps``: packet loss, a range cut,
+a radio-opaque wall sweeping the workspace); ``--min-duration`` keeps the run going
+(no early stop when settled) to observe the swarm after them.
+
 Writes into --out: ``metrics.json`` (the keys of scripts/evaluate.py plus
 real_time_factor, max_localization_error, consensus_rounds, cpu and memory figures),
 ``fleet.yaml``, ``record.npz`` (the monitor's 2 Hz record: times, true positions and
-velocities, estimated positions, modes, goal ids), ``logs/*.log`` and the figures
+velocities, estimated positions, modes, goal ids, assignment digests and rounds; the
+final goals; every agent's DSDV route table sampled every 2 s of sim time: route_times,
+route_next (next hop, -1: none), route_hops (255: broken or none), route_stamp),
+``logs/*.log`` and the figures
 ``trajectories.png``, ``mesh.png``, ``localization_error.png`` and ``modes.png``.
 
 One swarm over several hosts: run the same command on every host with the same
@@ -65,6 +74,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help='target real-time factor of the sim (0: as fast as possible)')
     p.add_argument('--remove', action='append', default=[],
                    help='remove robots mid-run, e.g. --remove 60:3,17 (sim time:ids)')
+    p.add_argument('--set-sim', action='append', default=[], metavar='T:NAME=VALUE',
+                   help='set a run-time parameter of the sim node at sim time T, e.g. '
+                        '--set-sim 60:loss=0.2, 90:radio_range_m=5 or '
+                        '90:radio_wall_speed_mps=1 (repeatable)')
+    p.add_argument('--min-duration', type=float, default=0.0,
+                   help='sim seconds the run lasts at least, settled or not')
     p.add_argument('--control-rate', type=float, default=50.0, help='agent inner loop Hz')
     p.add_argument('--domain', type=int, default=None, help='ROS_DOMAIN_ID (default: free)')
     p.add_argument('--local-agents', default='',
@@ -105,6 +120,38 @@ def parse_agent_ids(spec: str, n_agents: int) -> list[int]:
     return sorted(ids)
 
 
+def parse_set_sim(spec: str) -> tuple[float, str, float]:
+    """``--set-sim T:NAME=VALUE`` as (time, name, value), checked by the medium's rules."""
+    from swarm_sim.medium import RUNTIME_SETTINGS
+
+    names = ', '.join(RUNTIME_SETTINGS)
+    when, sep, assignment = spec.partition(':')
+    name, eq, value = assignment.partition('=')
+    if not sep or not eq or not name.strip():
+        raise LaunchError(f'--set-sim {spec!r}: write TIME:NAME=VALUE, e.g. '
+                          '--set-sim 60:loss=0.2')
+    try:
+        t = float(when)
+    except ValueError:
+        raise LaunchError(f'--set-sim {spec!r}: {when.strip()!r} is not a sim time in '
+                          'seconds; write e.g. 60:loss=0.2') from None
+    if not (np.isfinite(t) and t >= 0.0):
+        raise LaunchError(f'--set-sim {spec!r}: the time must be a sim time >= 0 s')
+    name = name.strip()
+    if name not in RUNTIME_SETTINGS:
+        raise LaunchError(f'--set-sim {spec!r}: the sim node has no run-time parameter '
+                          f'{name!r}; use one of {names}')
+    try:
+        number = float(value)
+    except ValueError:
+        raise LaunchError(f'--set-sim {spec!r}: {value.strip()!r} is not a number') from None
+    try:
+        number = RUNTIME_SETTINGS[name](number)
+    except ValueError as exc:
+        raise LaunchError(f'--set-sim {spec!r}: {exc}') from None
+    return t, name, number
+
+
 def validate(args: argparse.Namespace):
     """Check everything before starting anything; return (shape, counts, beacons, fleet)."""
     from swarm_mission.partition import partition, PartitionError
@@ -130,9 +177,18 @@ def validate(args: argparse.Namespace):
     if args.agents_only and not args.local_ids:
         raise LaunchError('--agents-only with --local-agents none starts nothing; '
                           'name the agents of this host, e.g. --local-agents 4-7')
-    if args.agents_only and args.remove:
-        raise LaunchError('--remove acts from the host that runs the sim; '
+    if args.agents_only and (args.remove or args.set_sim):
+        flag = '--remove' if args.remove else '--set-sim'
+        raise LaunchError(f'{flag} acts from the host that runs the sim; '
                           'drop it from the --agents-only command')
+    args.sim_settings = sorted(parse_set_sim(s) for s in args.set_sim)
+    if args.sim_settings and args.sim_settings[-1][0] >= args.duration:
+        raise LaunchError(f'--set-sim at {args.sim_settings[-1][0]:g} s comes after the end '
+                          f'of the run (--duration {args.duration:g}); set it earlier or '
+                          'raise --duration')
+    if not 0.0 <= args.min_duration <= args.duration:
+        raise LaunchError(f'--min-duration {args.min_duration:g} must be within 0 and '
+                          f'--duration {args.duration:g}')
     if not 0 <= beacons <= args.agents:
         raise LaunchError(f'--beacons {beacons} exceeds --agents {args.agents}; '
                           f'use at most {args.agents}')
@@ -310,6 +366,62 @@ def run_agents_only(children: Children, args: argparse.Namespace, fleet,
     return 0
 
 
+ROUTE_PERIOD_S = 2.0   # sim seconds between samples of the agents' route tables
+NO_ROUTE_HOPS = 255    # swarm_msgs/RouteEntry.INFINITE_HOPS
+
+
+class RouteRecorder:
+    """Keeps each agent's latest DSDV table (``/agent_K/routes``) and samples them all."""
+
+    def __init__(self, node, ids: list[int]) -> None:
+        from rclpy.qos import QoSProfile
+
+        from swarm_mission import qos
+        from swarm_msgs.msg import RouteTable
+
+        self.ids = list(ids)
+        self.index = {a: k for k, a in enumerate(self.ids)}
+        self.lock = threading.Lock()
+        n = len(self.ids)
+        self.next = np.full((n, n), -1, dtype=np.int32)
+        self.hops = np.full((n, n), NO_ROUTE_HOPS, dtype=np.int32)
+        self.stamp = np.full(n, np.nan)
+        self.samples: dict[str, list] = {'route_times': [], 'route_next': [],
+                                         'route_hops': [], 'route_stamp': []}
+        for a in self.ids:
+            node.create_subscription(RouteTable, f'/agent_{a}/routes', self._on_routes,
+                                     QoSProfile(**qos.STATE))
+
+    def _on_routes(self, msg) -> None:
+        k = self.index.get(int(msg.owner))
+        if k is None:
+            return
+        with self.lock:
+            self.next[k] = -1
+            self.hops[k] = NO_ROUTE_HOPS
+            for r in msg.routes:
+                j = self.index.get(int(r.destination))
+                if j is not None:
+                    self.next[k, j] = int(r.next_hop)
+                    self.hops[k, j] = int(r.hop_count)
+            self.stamp[k] = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+    def sample(self, t: float) -> None:
+        with self.lock:
+            for key, value in (('route_times', t), ('route_next', self.next.copy()),
+                               ('route_hops', self.hops.copy()),
+                               ('route_stamp', self.stamp.copy())):
+                self.samples[key].append(value)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        n = len(self.ids)
+        empty = {'route_times': (0,), 'route_next': (0, n, n), 'route_hops': (0, n, n),
+                 'route_stamp': (0, n)}
+        with self.lock:
+            return {k: np.asarray(v) if v else np.zeros(empty[k])
+                    for k, v in self.samples.items()}
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     out = pathlib.Path(args.out).resolve()
@@ -344,6 +456,15 @@ def main(argv: list[str] | None = None) -> int:
     monitor = MonitorNode(ids, parameter_overrides=[
         rclpy.parameter.Parameter('use_sim_time', value=True)])
     kill_pub = monitor.create_publisher(Int32MultiArray, '/swarm/kill', 10)
+    routes = RouteRecorder(monitor, ids)
+    settings = list(args.sim_settings)
+    sim_params_client = None
+    if settings:
+        from rclpy.parameter_client import AsyncParameterClient
+        sim_params_client = AsyncParameterClient(monitor, 'sim')
+    pending_sets: list[tuple[dict, object]] = []
+    applied_settings: list[dict] = []
+    next_route_sample = 0.0
     executor = SingleThreadedExecutor()
     executor.add_node(monitor)
     spin_thread = threading.Thread(target=executor.spin, daemon=True)
@@ -397,6 +518,30 @@ def main(argv: list[str] | None = None) -> int:
                 removed += len(victims)
                 print(f'\nlaunch_swarm: t={t:.1f} s removed agents {victims}', flush=True)
                 last_change_t = t
+            while settings and settings[0][0] <= t and sim_params_client.services_are_ready():
+                when, name, value = settings.pop(0)
+                entry = {'time': when, 'sent_at': t, 'name': name, 'value': value}
+                pending_sets.append((entry, sim_params_client.set_parameters(
+                    [rclpy.parameter.Parameter(name, value=value)])))
+                last_change_t = t
+            for entry, future in [p for p in pending_sets if p[1].done()]:
+                pending_sets.remove((entry, future))
+                result = future.result()
+                ok = bool(result is not None and result.results and
+                          result.results[0].successful)
+                entry.update(ok=ok, reason='' if ok or result is None or not result.results
+                             else result.results[0].reason)
+                applied_settings.append(entry)
+                if ok:
+                    print(f'\nlaunch_swarm: t={t:.1f} s sim {entry["name"]} = '
+                          f'{entry["value"]:g}', flush=True)
+                else:
+                    print(f'\nlaunch_swarm: t={t:.1f} s the sim refused {entry["name"]} = '
+                          f'{entry["value"]:g}: {entry["reason"] or "no answer"}',
+                          file=sys.stderr, flush=True)
+            if t >= next_route_sample:
+                routes.sample(t)
+                next_route_sample = t + ROUTE_PERIOD_S
             if status['goal_version'] != last_goal_version:
                 last_goal_version, last_change_t = status['goal_version'], t
             wall = time.monotonic() - wall0
@@ -413,6 +558,7 @@ def main(argv: list[str] | None = None) -> int:
             if t >= args.duration:
                 break
             if status['settled'] >= args.agents - removed and not removals and \
+                    not settings and not pending_sets and t >= args.min_duration and \
                     t > args.last_switch and t - last_change_t > args.settle_hold:
                 settled_since = t if settled_since is None else settled_since
                 if t - settled_since >= args.settle_hold:
@@ -433,6 +579,7 @@ def main(argv: list[str] | None = None) -> int:
         executor.shutdown()
         monitor_record = monitor.snapshot()
         monitor_record['agent_ids'] = np.array(monitor.agent_ids)
+        monitor_record.update(routes.arrays())
         monitor_shapes = list(monitor.shapes)
         monitor_goals = list(monitor.goals)
         rounds = len(monitor.rounds_seen)
@@ -446,7 +593,16 @@ def main(argv: list[str] | None = None) -> int:
 
     robots = sorted(fleet, key=lambda r: r.id)
     # The 2 Hz record of truth and belief, for plots and post-mortems of one agent.
+    final_goals = monitor_goals or []
+    monitor_record.update(
+        goal_id=np.array([g.id for g in final_goals], dtype=np.int64),
+        goal_type=np.array([g.type for g in final_goals], dtype=np.int64),
+        goal_xy=np.array([[g.x, g.y] for g in final_goals], dtype=float).reshape(-1, 2))
     np.savez_compressed(out / 'record.npz', **monitor_record)
+    unapplied = [{'time': w, 'name': n, 'value': v, 'ok': False, 'reason': 'not sent'}
+                 for w, n, v in settings] + [
+        dict(e, ok=False, reason='no answer') for e, _ in pending_sets]
+    sim_settings = applied_settings + unapplied
     shapes = [s for _, s in monitor_shapes] or [shape]
     metrics = run_report(out, monitor_record, [r.type for r in robots],
                          [r.is_beacon for r in robots], shapes, monitor_goals, extra={
@@ -457,7 +613,8 @@ def main(argv: list[str] | None = None) -> int:
                              'launcher_max_rss_bytes':
                                  resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
                              'seed': args.seed, 'truth_subscribers': truth_readers,
-                             'goal_versions': goal_versions, 'agents_heard': heard})
+                             'goal_versions': goal_versions, 'agents_heard': heard,
+                             'sim_settings': sim_settings})
     scenario = {k: v for k, v in vars(args).items()}
     scenario.update(beacons=beacons, domain=domain)
     write_metrics(out, [metrics], scenario)
@@ -466,7 +623,12 @@ def main(argv: list[str] | None = None) -> int:
           f'{metrics.get("total_displacement", float("nan")):.0f} m, eps_t '
           f'{metrics.get("epsilon_t", float("nan")):.2f}, eps_g '
           f'{metrics.get("epsilon_g", float("nan")):.2f}; results in {out}')
-    return 1 if crashed else 0
+    failed = [e for e in sim_settings if not e['ok']]
+    if failed and outcome != 'interrupted':
+        print('launch_swarm: --set-sim not applied: ' + '; '.join(
+            f'{e["name"]}={e["value"]:g} at {e["time"]:g} s ({e["reason"]})' for e in failed),
+            file=sys.stderr)
+    return 1 if crashed or (failed and outcome != 'interrupted') else 0
 
 
 if __name__ == '__main__':
