@@ -7,6 +7,7 @@
 
 #include "hal.h"
 #include "robot.h"
+#include "stepper.h"
 
 #define HOST_TX_CAPACITY 8192
 
@@ -24,9 +25,12 @@ void hal_uart_put(uint8_t byte)
     }
 }
 
-void hal_coils(uint8_t ch, uint8_t pattern)
+void hal_coils(void)
 {
-    host_coils[ch] = pattern;
+    uint8_t ch;
+    for (ch = 0; ch < 3; ch++) {
+        host_coils[ch] = st_coils[ch];
+    }
 }
 
 /* Reset the board as at power-up. */

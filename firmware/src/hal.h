@@ -7,8 +7,11 @@
 
 /* Send one byte on the EUSART (blocking until the transmit register is free). */
 void hal_uart_put(uint8_t byte);
-/* Drive the four ULN2003 inputs of stepper channel ch (0 = A, 1 = B, 2 = C). */
-void hal_coils(uint8_t ch, uint8_t pattern);
+/* Drive the ULN2003 inputs of the three stepper channels (A, B, C) with st_coils[]
+ * (stepper.h). Called from the timer interrupt, so it takes no arguments: on the PIC every
+ * argument or result byte after the first travels in sdcc's STK00.. registers, which the
+ * interrupt does not save (PROTOCOL.md, "Interrupt rule"). */
+void hal_coils(void);
 
 #if defined(__SDCC)
 /* Mask / unmask interrupts around state shared with the timer interrupt. */

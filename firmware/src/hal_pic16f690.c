@@ -15,6 +15,7 @@
 
 #include "hal.h"
 #include "robot.h"
+#include "stepper.h"
 
 /* Core registers, exported: the sdcc runtime (libsdcc) links against these names. */
 __sfr __at(0x0000) INDF;
@@ -58,8 +59,6 @@ static __code uint16_t __at(0x2007) config_word = 0x33EC;
 #define OERR 0x02
 #define FERR 0x04
 #define CREN 0x10
-static uint8_t porta_shadow;
-static uint8_t portc_shadow;
 
 void hal_irq_off(void)
 {
@@ -78,18 +77,11 @@ void hal_uart_put(uint8_t byte)
     TXREG = byte;
 }
 
-void hal_coils(uint8_t ch, uint8_t pattern)
+/* Whole-port writes, no read-modify-write: RA3 is an input, RA5 and RB unused. */
+void hal_coils(void)
 {
-    if (ch == 0) {
-        portc_shadow = (portc_shadow & 0xF0) | pattern;
-        PORTC = portc_shadow;
-    } else if (ch == 1) {
-        portc_shadow = (portc_shadow & 0x0F) | (uint8_t)(pattern << 4);
-        PORTC = portc_shadow;
-    } else {
-        porta_shadow = (pattern & 0x07) | (uint8_t)((pattern & 0x08) << 1);
-        PORTA = porta_shadow;
-    }
+    PORTC = st_coils[0] | (uint8_t)(st_coils[1] << 4);
+    PORTA = (st_coils[2] & 0x07) | (uint8_t)((st_coils[2] & 0x08) << 1);
 }
 
 static void isr(void) __interrupt 0

@@ -20,7 +20,13 @@ robot_t robot;
  * frames go out from robot_poll -> send_payload -> put_escaped -> hal_uart_put, and
  * handle_frame only fills robot.tx with the acknowledgement (robot_poll -> handle_frame
  * -> mixer_mix -> code-table read, 2 library levels, is the deepest main-loop chain).
- * tests/unit/bridge/test_gpsim.py runs the build in gpsim, which halts on an overflow. */
+ * tests/unit/bridge/test_gpsim.py runs the build in gpsim, which halts on an overflow.
+ *
+ * Interrupt rule: everything the interrupt calls takes at most one byte of arguments and
+ * returns at most one byte (both in W). sdcc's pic14 port passes the other bytes, and its
+ * library routines keep their temporaries, in the STK00.. registers, which the interrupt
+ * does not save: a two-argument hal_coils(ch, pattern) here once overwrote the code
+ * address the main loop's table read (__gptrget2) held in STK00 (PROTOCOL.md). */
 
 static void put_escaped(uint8_t byte)
 {
@@ -161,8 +167,8 @@ void robot_init(void)
     }
     for (i = 0; i < 3; i++) {
         mix_rate[i] = 0;
-        hal_coils(i, 0);
     }
+    hal_coils(); /* st_coils[] all 0 after stepper_init() */
 }
 
 void robot_rx_isr(uint8_t byte)
@@ -231,7 +237,5 @@ void robot_tick(void)
         robot.heartbeat_due = 1;
     }
     stepper_tick();
-    for (i = 0; i < 3; i++) {
-        hal_coils(i, stepper_pattern(i));
-    }
+    hal_coils();
 }

@@ -67,8 +67,3 @@ void stepper_tick(void)
         st_coils[i] = coil;
     }
 }
-
-uint8_t stepper_pattern(uint8_t ch)
-{
-    return st_coils[ch];
-}

@@ -9,7 +9,10 @@
 extern int16_t st_rate[3];     /* half-steps per second, signed; written under HAL_CRITICAL */
 extern uint16_t st_acc[3];     /* phase accumulators, 0..SWP_TICK_HZ-1                     */
 extern uint8_t st_phase[3];    /* index into the half-step sequence, 0..7                  */
-extern uint8_t st_coils[3];    /* coil pattern of each channel after the last tick, 0: off  */
+/* Coil pattern of each channel after the last tick (bits 0..3 = IN1..IN4 of its ULN2003),
+ * 0: off; hal_coils() drives them. A byte array, so the timer interrupt indexes no 16-bit
+ * array (a library multiply and one more level of the PIC's 8-level stack). */
+extern uint8_t st_coils[3];
 #if !defined(__SDCC)
 extern int32_t st_position[3]; /* half-steps taken, signed (host builds: tests only)       */
 #endif
@@ -17,9 +20,5 @@ extern int32_t st_position[3]; /* half-steps taken, signed (host builds: tests o
 void stepper_init(void);
 /* One timer tick (1/SWP_TICK_HZ s): advance each channel whose accumulator overflows. */
 void stepper_tick(void);
-/* Coil pattern of channel ch (bits 0..3 = IN1..IN4 of its ULN2003) after the last
- * stepper_tick(); 0 when stopped. Kept in a byte array so the timer interrupt indexes no
- * 16-bit array (a library multiply and one more level of the PIC's 8-level stack). */
-uint8_t stepper_pattern(uint8_t ch);
 
 #endif

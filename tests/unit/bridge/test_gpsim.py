@@ -8,7 +8,9 @@ the bytes the board sends (acks, statuses every 200 ms) decode to the emulator's
 (cmd_age_ms to the chip's command latency); the coils start after the command and go
 quiet 500 ms after it (watchdog); a frame with a bad checksum is not acknowledged and is
 counted; each motor channel half-steps in the emulator's direction as often as the
-emulator's wheel (eqs. 5.1-5.3 mix): xfail, wheel B is mixed wrong on the chip.
+emulator's wheel (eqs. 5.1-5.3 mix). This last check found the interrupt overwriting sdcc's
+STK00 under the main loop's table read (wheel B at 187 instead of 337 half-steps/s; see
+PROTOCOL.md, "Interrupt rule").
 """
 
 from __future__ import annotations
@@ -145,9 +147,6 @@ def test_watchdog_stops_the_coils_500_ms_after_the_command(gpsim_run):
         assert changes[-1][1] == 0
 
 
-@pytest.mark.xfail(strict=True, reason='the PIC build mixes CmdVel(300, 90) to wheel B 187 '
-                   'half-steps/s, the C on the host and the emulator to 337: an sdcc pic14 '
-                   'miscompile in mixer_mix, not yet located')
 def test_wheels_step_at_the_mixed_rates(gpsim_run, emulated):
     rates, _ = protocol.mix_fixed(300, 90)
     board, sent = emulated
@@ -157,5 +156,6 @@ def test_wheels_step_at_the_mixed_rates(gpsim_run, emulated):
         phases = [HALF_STEP.index(p) for _, p in changes if p]
         steps = [(b - a) % 8 for a, b in zip(phases, phases[1:])]
         assert steps and set(steps) == {1 if rates[ch] > 0 else 7}, (ch, steps[:10])
-        # the first pattern is the first step; the emulator counts every step
-        assert abs(len(phases) - abs(board.positions[ch])) <= 2, (ch, len(phases))
+        # the first pattern is phase 0, energised before the first step; both count the
+        # same 500 ticks with the same accumulator, so at most a tick's alignment apart
+        assert abs(len(steps) - abs(board.positions[ch])) <= 1, (ch, len(steps))
