@@ -47,11 +47,18 @@ INPUT = [(250, frame(protocol.CmdVel(9, 300, 90))),
 
 
 @pytest.fixture(scope='module')
-def gpsim_run(tmp_path_factory):
+def pic_build(tmp_path_factory):
+    """The PIC build's directory: swarm_robot.cod and sdcc's .asm of every source."""
     out = tmp_path_factory.mktemp('gpsim')
     build = subprocess.run(['make', '-C', str(pic_toolchain.FIRMWARE), 'pic',
                             f'PIC_DIR={out}'], capture_output=True, text=True)
     assert build.returncode == 0, build.stdout + build.stderr
+    return out
+
+
+@pytest.fixture(scope='module')
+def gpsim_run(pic_build):
+    out = pic_build
     log = out / 'ports.log'
     lines = [f'load s {out}/swarm_robot.cod', 'p16f690.frequency = 8000000',
              'module library libgpsim_modules', 'module load usart U1',
@@ -159,3 +166,36 @@ def test_wheels_step_at_the_mixed_rates(gpsim_run, emulated):
         # the first pattern is phase 0, energised before the first step; both count the
         # same 500 ticks with the same accumulator, so at most a tick's alignment apart
         assert abs(len(steps) - abs(board.positions[ch])) <= 1, (ch, len(steps))
+
+
+def asm_functions(out) -> dict[str, list[str]]:
+    """Instructions (comments dropped) of every function in sdcc's .asm files, by label."""
+    functions: dict[str, list[str]] = {}
+    body: list[str] = []
+    for path in sorted(out.glob('*.asm')):
+        for line in path.read_text().splitlines():
+            if m := re.match(r'(_[A-Za-z]\w*):', line):   # not local labels (_00123_DS_)
+                body = functions.setdefault(m.group(1), [])
+            elif (code := line.split(';')[0].strip()) and line[0] in ' \t':
+                body.append(code)
+    return functions
+
+
+def test_interrupt_leaves_the_stk_registers_alone(pic_build):
+    """sdcc's pic14 interrupt saves W, STATUS, PCLATH and FSR, not STK00..: whatever it
+    calls passes and returns one byte at most (in W) and calls no library routine (they
+    keep state in STK00..). A two-byte hal_coils(ch, pattern) once broke wheel B's mix."""
+    functions = asm_functions(pic_build)
+    todo, seen = ['_isr'], set()
+    while todo:
+        name = todo.pop()
+        if name in seen:
+            continue
+        seen.add(name)
+        assert name in functions and not name.startswith('__'), \
+            f'the interrupt reaches the library routine {name}'
+        for code in functions[name]:
+            assert not re.search(r'\bSTK\d\d\b', code), (name, code)
+            if m := re.match(r'CALL\s+(\w+)', code, re.IGNORECASE):
+                todo.append(m.group(1))
+    assert {'_robot_tick', '_stepper_tick', '_hal_coils', '_xp_feed'} <= seen
