@@ -50,7 +50,7 @@ from swarm_mission.partition import PartitionError
 from swarm_mission.robot_types import RobotTypeError
 from swarm_mission.shapes import ShapeError
 from swarm_sim.headless import HeadlessSwarm, Scenario, ScenarioError, TrialRecord
-from swarm_sim.medium import RadioMedium, SweepingWall
+from swarm_sim.medium import MediumConfig, RadioMedium, SweepingWall
 from swarm_sim.metrics import min_separation_ratio, settling_time
 
 GOAL_TOLERANCE_M = 1.5      # a goal counts as covered by an agent of its type this close
@@ -85,8 +85,12 @@ def fault_cases(ranges: tuple[float, ...] = RANGES) -> list[dict[str, Any]]:
 
 def _components(swarm: HeadlessSwarm) -> int:
     """Connected components of the true radio link graph among the living agents."""
-    ids, links = swarm.medium.adjacency()
-    alive = {swarm.ids[i] for i in np.flatnonzero(swarm.alive)}
+    return link_components(swarm.medium, {swarm.ids[i] for i in np.flatnonzero(swarm.alive)})
+
+
+def link_components(medium: RadioMedium, alive: set[int]) -> int:
+    """Connected components of the medium's link graph among the ``alive`` agent ids."""
+    ids, links = medium.adjacency()
     keep = [k for k, a in enumerate(ids) if a in alive]
     if not keep:
         return 0
@@ -171,9 +175,15 @@ def stale_routes_to_dead(swarm: HeadlessSwarm) -> int:
 
 def min_beacons_heard(swarm: HeadlessSwarm) -> int:
     """Fewest living beacons a living non-beacon agent has as direct radio neighbours."""
-    beacons = {swarm.ids[i] for i in np.flatnonzero(swarm.is_beacon & swarm.alive)}
-    counts = [len(beacons & set(swarm.medium.neighbours(swarm.ids[i])))
-              for i in np.flatnonzero(swarm.alive & ~swarm.is_beacon)]
+    return fewest_beacons_heard(swarm.medium, swarm.ids, swarm.alive, swarm.is_beacon)
+
+
+def fewest_beacons_heard(medium: RadioMedium, ids, alive: np.ndarray,
+                         is_beacon: np.ndarray) -> int:
+    """Fewest living beacons a living non-beacon has as direct neighbours in ``medium``."""
+    beacons = {ids[i] for i in np.flatnonzero(is_beacon & alive)}
+    counts = [len(beacons & set(medium.neighbours(ids[i])))
+              for i in np.flatnonzero(alive & ~is_beacon)]
     return min(counts) if counts else len(beacons)
 
 
@@ -323,6 +333,51 @@ def goals_reached(record: TrialRecord) -> float:
     return covered / len(record.goals)
 
 
+def coverage_columns(record, shape, radius: np.ndarray, first: float, last: float
+                     ) -> dict[str, Any]:
+    """Columns computed from a record of truth and belief (headless or ROS), same keys.
+
+    ``record`` has times, positions, velocities, alive, modes, digests, goal_ids, types
+    and goals (the final goals: id, type, x, y); ``radius`` each robot's coverage radius.
+    """
+    after = np.flatnonzero(record.times >= first)
+    if len(after) == 0:
+        after = np.array([len(record.times) - 1])
+    alive_now = record.alive[-1]
+    settle = settling_time(record.times, record.positions, record.velocities, shape,
+                           record.alive)
+    return {
+        'fault_time': first, 'last_fault_time': last,
+        'agents': len(record.types), 'agents_alive': int(alive_now.sum()),
+        'goals_claimed': goals_claimed(record), 'goals_reached': goals_reached(record),
+        'agreement_after_fault': _agreement(record, after),
+        'final_agreement': _agreement(record, np.array([len(record.times) - 1])),
+        'settling_time': settle, 'settled': settle is not None,
+        'recovery_time': None if settle is None else max(0.0, settle - last),
+        'min_separation_after_fault': min_separation_ratio(
+            record.positions[after][:, alive_now], radius[alive_now]),
+        'critical_range_at_fault': critical_range(
+            record.positions[after[0]][record.alive[after[0]]]),
+        'critical_range_final': critical_range(record.positions[-1][alive_now]),
+    }
+
+
+def judge(row: dict[str, Any]) -> dict[str, Any]:
+    """The issue's target and the pass verdict of a row (see the docs' columns)."""
+    # The issue's target: nothing lost, coverage restored, while >= 3 beacons reachable.
+    row['target_applies'] = row['beacons_alive'] >= 3 and row['min_beacons_heard'] >= 3
+    # Nothing lost: settled inside the shape, every goal claimed by exactly one living
+    # agent. Identical digests (same cost rows) are reported but not required: under
+    # loss agents may hold different row sets and still compute the same assignment.
+    # goals_reached (true distance) is reported too; it is bounded by localization.
+    row['passed'] = bool(row['settled'] and row['fraction_inside'] >= 1.0
+                         and row['goals_claimed'] >= 1.0
+                         and row['duplicate_goal_claims'] == 0
+                         and not row['count_to_infinity'] and row['routing_loops'] == 0
+                         and not row.get('crashed'))
+    return row
+
+
 def run_case(case: dict, config: dict, seed: int) -> dict[str, Any]:
     """Run one (case, seed) trial and return its row of the study."""
     swarm = build_swarm(case, config, seed)
@@ -333,56 +388,28 @@ def run_case(case: dict, config: dict, seed: int) -> dict[str, Any]:
     m = record.metrics
     radii = {t: r.coverage_radius for t, r in swarm.types.items()}
     radius = np.array([radii[int(t)] for t in record.types])
-    after = np.flatnonzero(record.times >= first)
-    if len(after) == 0:
-        after = np.array([len(record.times) - 1])
-    alive_now = record.alive[-1]
-    settle = settling_time(record.times, record.positions, record.velocities,
-                           swarm.mission.shape, record.alive)
-    recovery = None if settle is None else max(0.0, settle - last)
-    final_agreement = _agreement(record, np.array([len(record.times) - 1]))
     beacons_alive = int((swarm.is_beacon & swarm.alive).sum())
     row: dict[str, Any] = {
         'case': case['name'], 'kind': case['kind'], 'value': case['value'], 'seed': seed,
-        'fault_time': first, 'last_fault_time': last,
-        'agents': swarm.n, 'agents_alive': int(alive_now.sum()),
-        'fraction_inside': m['fraction_inside'], 'goals_claimed': goals_claimed(record),
-        'goals_reached': goals_reached(record),
+        **coverage_columns(record, swarm.mission.shape, radius, first, last),
+        'fraction_inside': m['fraction_inside'],
         'epsilon_t': m['epsilon_t'], 'epsilon_g': m['epsilon_g'],
         'assignment_agreement': m['assignment_agreement'],
-        'agreement_after_fault': _agreement(record, after),
-        'final_agreement': final_agreement,
         'duplicate_goal_claims': m['duplicate_goal_claims'],
-        'settling_time': settle, 'settled': settle is not None, 'recovery_time': recovery,
         'min_separation_ratio': m['min_separation_ratio'],
-        'min_separation_after_fault': min_separation_ratio(
-            record.positions[after][:, alive_now], radius[alive_now]),
         'max_hops_seen': monitor.max_hops,
         'count_to_infinity': bool(monitor.max_hops_vs_size > 0),
         'routing_loops': monitor.loops,
         'stale_routes_to_dead': stale_routes_to_dead(swarm),
         'max_components_after_fault': monitor.max_components_after,
         'final_components': monitor.components_timeline[-1][1],
-        'critical_range_at_fault': critical_range(
-            record.positions[after[0]][record.alive[after[0]]]),
-        'critical_range_final': critical_range(record.positions[-1][alive_now]),
         'beacons_alive': beacons_alive, 'min_beacons_heard': min_beacons_heard(swarm),
         'final_modes_normal': m['final_modes_normal'],
         'rms_localization_error': m['rms_localization_error'],
         'medium': m['medium'], 'events': record.events,
         'duration': m['duration'], 'wall_seconds': m['wall_seconds'],
     }
-    # The issue's target: nothing lost, coverage restored, while >= 3 beacons reachable.
-    row['target_applies'] = beacons_alive >= 3 and row['min_beacons_heard'] >= 3
-    # Nothing lost: settled inside the shape, every goal claimed by exactly one living
-    # agent. Identical digests (same cost rows) are reported but not required: under
-    # loss agents may hold different row sets and still compute the same assignment.
-    # goals_reached (true distance) is reported too; it is bounded by localization.
-    row['passed'] = bool(row['settled'] and row['fraction_inside'] >= 1.0
-                         and row['goals_claimed'] >= 1.0
-                         and row['duplicate_goal_claims'] == 0
-                         and not row['count_to_infinity'] and row['routing_loops'] == 0)
-    return row
+    return judge(row)
 
 
 # ---------------------------------------------------------------------------- report
@@ -401,14 +428,16 @@ def summarise(rows: list[dict], cases: list[dict]) -> dict[str, dict[str, Any]]:
             summary[key] = float(np.mean(values)) if values else None
         for key in ('min_separation_ratio', 'min_separation_after_fault'):
             # The worst seed; None (in faults.json) is inf: no pair within 3 r_max.
-            summary[key] = min(math.inf if r[key] is None else float(r[key])
+            summary[key] = min(math.inf if r.get(key) is None else float(r[key])
                                for r in group)
-        summary['max_hops_seen'] = max(r['max_hops_seen'] for r in group)
-        summary['count_to_infinity'] = any(r['count_to_infinity'] for r in group)
+        summary['max_hops_seen'] = max(r.get('max_hops_seen', 0) for r in group)
+        summary['count_to_infinity'] = any(r.get('count_to_infinity') for r in group)
         summary['passed'] = sum(r['passed'] for r in group)
         summary['target_applies'] = sum(r['target_applies'] for r in group)
         summary['unsettled'] = sum(not r['settled'] for r in group)
-        summary['agents'] = group[0]['agents']
+        summary['agents'] = max(r.get('agents', 0) for r in group)
+        # ROS runs: runs in which a node died (or the run timed out / left no results)
+        summary['crashed'] = sum(bool(r.get('crashed')) for r in group)
         out[case['name']] = summary
     return out
 
@@ -423,11 +452,15 @@ def _fmt(value: Any, digits: int = 2) -> str:
     return f'{value:.{digits}f}'
 
 
-def markdown_table(summary: dict[str, dict[str, Any]]) -> str:
-    """One row per case: coverage, agreement, recovery, collisions, DSDV, target."""
+def markdown_table(summary: dict[str, dict[str, Any]], crashes: bool = False) -> str:
+    """One row per case: coverage, agreement, recovery, collisions, DSDV, target.
+
+    ``crashes`` adds the column of runs in which a node died (ROS runs).
+    """
     head = ('| Case | inside | goals claimed (reached) | eps_t | eps_g | agree (after fault) | '
             'agree (end) | dup claims | settled | recovery [s] | min sep (after fault) | '
-            'max hops / N | loops | components | beacons (min heard) | passed |')
+            'max hops / N | loops | components | beacons (min heard) | '
+            + ('crashed | ' if crashes else '') + 'passed |')
     lines = [head, '|' + '---|' * (head.count('|') - 1)]
     for name, s in summary.items():
         seeds = s['seeds']
@@ -442,11 +475,12 @@ def markdown_table(summary: dict[str, dict[str, Any]]) -> str:
             f'{s["max_hops_seen"]} / {s["agents"]} | {_fmt(s["routing_loops"], 1)} | '
             f'{_fmt(s["max_components_after_fault"], 1)} | '
             f'{_fmt(s["beacons_alive"], 1)} ({_fmt(s["min_beacons_heard"], 1)}) | '
-            f'{s["passed"]}/{seeds} |')
+            + (f'{s["crashed"]}/{seeds} | ' if crashes else '') + f'{s["passed"]}/{seeds} |')
     return '\n'.join(lines) + '\n'
 
 
-def plot(path: pathlib.Path, summary: dict[str, dict[str, Any]]) -> None:
+def plot(path: pathlib.Path, summary: dict[str, dict[str, Any]],
+         title: str = 'Fault study') -> None:
     """Bars per case: coverage and agreement, recovery time, separation and hops."""
     import matplotlib
     matplotlib.use('Agg')
@@ -483,10 +517,280 @@ def plot(path: pathlib.Path, summary: dict[str, dict[str, Any]]) -> None:
     axes[3].plot(x, values('agents'), 'k_', ms=20, label='agents N')
     axes[3].legend(loc='upper left', fontsize=8)
     axes[3].set_xticks(x, names, rotation=30, ha='right')
-    fig.suptitle('Fault study: coverage, agreement, recovery, collisions, routing')
+    fig.suptitle(f'{title}: coverage, agreement, recovery, collisions, routing')
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+
+# ---------------------------------------------------------------------------- ROS
+# The same cases through the full ROS system (sim_node, mission_node, composed agents),
+# one launch_swarm run at a time; faults by its --remove and --set-sim.
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+LAUNCH = ROOT / 'scripts' / 'launch_swarm.py'
+ROS_CASES = ('loss_0', 'loss_20', 'loss_50', 'kill_30', 'beacons_half', 'range_2',
+             'obstacle')
+ROUTE_FRESH_S = 5.0     # a route table older than this (sim s) is of a dead agent
+NO_ROUTE = 255          # swarm_msgs/RouteEntry.INFINITE_HOPS, also "no entry"
+
+
+def ros_config(args: argparse.Namespace) -> dict[str, Any]:
+    """Defaults of the ROS study (the e2e test's 12-agent square), overridden by args."""
+    base = {'agents': 12, 'beacons': 4, 'seeds': 1, 'half_size': 15.0, 'fault_time': 80.0,
+            'duration': 240.0, 'observe': 60.0, 'ranges': (2.0,), 'wall_speed': 1.0,
+            'shape': str(ROOT / 'tests' / 'data' / 'square_8m.json'), 'settle_hold': 3.0,
+            'timeout': 1200.0}
+    for key in ('agents', 'beacons', 'seeds', 'half_size', 'fault_time', 'duration',
+                'observe', 'shape'):
+        if getattr(args, key) is not None:
+            base[key] = getattr(args, key)
+    if args.ranges is not None:
+        base['ranges'] = tuple(args.ranges)
+    base.update(method=args.method, fault_window=args.fault_window, seed=args.seed,
+                ros=True, composed=True)
+    return base
+
+
+def ros_launch_argv(case: dict, config: dict, seed: int, run_dir: pathlib.Path
+                    ) -> tuple[list[str], dict[str, Any]]:
+    """launch_swarm.py arguments of a (case, seed) run and the case's fault plan."""
+    import launch_swarm
+
+    argv = ['--agents', str(config['agents']), '--beacons', str(config['beacons']),
+            '--method', config['method'], '--shape', str(config['shape']),
+            '--half-size', f'{config["half_size"]:g}', '--duration', f'{config["duration"]:g}',
+            '--settle-hold', f'{config["settle_hold"]:g}', '--composed', '--seed', str(seed),
+            '--out', str(run_dir)]
+    try:
+        _, _, _, fleet = launch_swarm.validate(launch_swarm.parse_args(argv))
+    except launch_swarm.LaunchError as exc:
+        raise ScenarioError(f'launch_swarm refuses the scenario: {exc}') from None
+    robots = sorted(fleet, key=lambda r: r.id)
+    plan = fault_plan(case, config, seed, [r.id for r in robots],
+                      [r.id for r in robots if r.is_beacon], config['half_size'])
+    for t, victims in plan['removals']:
+        argv += ['--remove', f'{t:.2f}:' + ','.join(str(v) for v in victims)]
+    for t, name, value in plan['settings']:
+        argv += ['--set-sim', f'{t:g}:{name}={value:g}']
+    if case['kind'] != 'loss':
+        until = min(config['duration'], plan['last'] + config['observe'])
+        argv += ['--min-duration', f'{until:g}']
+    return argv, plan
+
+
+def run_ros_case(case: dict, config: dict, seed: int, out: pathlib.Path) -> dict[str, Any]:
+    """One launch_swarm run of the case (its output in out/CASE_sSEED/), and its row."""
+    import shutil
+    import signal
+    import subprocess
+    import time
+
+    run_dir = out / f'{case["name"]}_s{seed}'
+    if run_dir.exists():
+        shutil.rmtree(run_dir)
+    argv, plan = ros_launch_argv(case, config, seed, run_dir)
+    run_dir.mkdir(parents=True)
+    (run_dir / 'command.txt').write_text(' '.join(['scripts/launch_swarm.py', *argv]) + '\n',
+                                         encoding='utf-8')
+    wall0 = time.monotonic()
+    with open(run_dir / 'launcher.log', 'w', encoding='utf-8') as log:
+        proc = subprocess.Popen([sys.executable, str(LAUNCH), *argv], stdout=log,
+                                stderr=subprocess.STDOUT, cwd=str(ROOT))
+        try:
+            returncode = proc.wait(timeout=config['timeout'])
+        except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGINT)   # the launcher stops its children itself
+            try:
+                proc.wait(timeout=60)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+            returncode = None
+    return ros_row(case, config, seed, run_dir, plan, returncode, time.monotonic() - wall0)
+
+
+def _crashed_nodes(run_dir: pathlib.Path, metrics: dict) -> list[str]:
+    """Nodes that died: the launcher's crash outcome, or a traceback in a node's log."""
+    crashed = []
+    outcome = str(metrics.get('outcome', ''))
+    if outcome.startswith('crash of '):
+        crashed.append(outcome[len('crash of '):])
+    for log in sorted((run_dir / 'logs').glob('*.log')):
+        text = log.read_text(encoding='utf-8', errors='replace')
+        if 'Traceback (most recent call last)' in text and log.stem not in crashed:
+            crashed.append(log.stem)
+    return crashed
+
+
+def route_columns(data, record, ids: list[int], first: float) -> dict[str, Any]:
+    """DSDV health from the launcher's route samples: hops, loops, stale routes."""
+    times = np.asarray(data['route_times'], dtype=float)
+    max_hops, vs_size, loops, stale = 0, -math.inf, 0, 0
+    for s, t in enumerate(times):
+        k = min(int(np.searchsorted(record.times, t)), len(record.times) - 1)
+        alive = record.alive[k]
+        age = t - data['route_stamp'][s]
+        fresh = alive & np.isfinite(age) & (age <= ROUTE_FRESH_S)
+        hops = data['route_hops'][s]
+        tables = {}
+        for i in np.flatnonzero(fresh):
+            finite = np.flatnonzero(hops[i] < NO_ROUTE)
+            tables[ids[i]] = {ids[j]: int(data['route_next'][s][i, j]) for j in finite}
+            if len(finite):
+                max_hops = max(max_hops, int(hops[i, finite].max()))
+                vs_size = max(vs_size, int(hops[i, finite].max()) - (int(alive.sum()) - 1))
+        loops += count_loops(tables)
+        if s == len(times) - 1:
+            dead = ~record.alive[-1]
+            stale = int(sum(np.sum((hops[i] < NO_ROUTE) & dead) for i in np.flatnonzero(fresh)))
+    return {'max_hops_seen': max_hops, 'count_to_infinity': bool(vs_size > 0),
+            'routing_loops': loops, 'stale_routes_to_dead': stale,
+            'route_samples': len(times)}
+
+
+def link_columns(record, ids: list[int], is_beacon: np.ndarray, settings: list, config: dict,
+                 shape, first: float) -> dict[str, Any]:
+    """Replay the medium's link graph on the recorded truth with the settings applied."""
+    medium = RadioMedium(MediumConfig(), np.random.default_rng(0), list(shape.obstacles))
+    pending = sorted(settings)
+    components_after, final = 0, 0
+    frames = list(range(0, len(record.times), SAMPLE_EVERY))
+    if frames[-1] != len(record.times) - 1:
+        frames.append(len(record.times) - 1)
+    for k in frames:
+        t = float(record.times[k])
+        while pending and pending[0][0] <= t:
+            when, name, value = pending.pop(0)
+            apply_setting(medium, name, value, when, config['half_size'])
+        medium.move_wall(t)
+        living = np.flatnonzero(record.alive[k])
+        medium.update_positions([ids[i] for i in living], record.positions[k][living])
+        final = link_components(medium, {ids[i] for i in living})
+        if t >= first:
+            components_after = max(components_after, final)
+    return {'max_components_after_fault': components_after, 'final_components': final,
+            'min_beacons_heard': fewest_beacons_heard(medium, ids, record.alive[-1],
+                                                      is_beacon)}
+
+
+def ros_row(case: dict, config: dict, seed: int, run_dir: pathlib.Path, plan: dict,
+            returncode: int | None, wall_seconds: float) -> dict[str, Any]:
+    """The study's row of one ROS run, from its metrics.json, record.npz and logs."""
+    from types import SimpleNamespace
+
+    from swarm_mission.robot_types import load_robot_types
+    from swarm_mission.shapes import load_shape
+    from swarm_sim.fleet import load_fleet
+
+    row: dict[str, Any] = {'case': case['name'], 'kind': case['kind'],
+                           'value': case['value'], 'seed': seed, 'ros': True,
+                           'launcher_exit': returncode, 'wall_seconds': wall_seconds,
+                           'run_dir': str(run_dir)}
+    try:
+        metrics = json.loads((run_dir / 'metrics.json').read_text())['trials'][0]
+        data = np.load(run_dir / 'record.npz')
+    except (OSError, ValueError, KeyError, IndexError) as exc:
+        row.update(error=f'no results: {exc}', crashed=['launcher'], passed=False,
+                   target_applies=False, settled=False)
+        return row
+    row['crashed'] = _crashed_nodes(run_dir, metrics)
+    if returncode is None:
+        row['crashed'].append('timeout')
+    ids = [int(a) for a in data['agent_ids']]
+    fleet = {r.id: r for r in load_fleet(run_dir / 'fleet.yaml')}
+    types = np.array([fleet[a].type for a in ids])
+    is_beacon = np.array([fleet[a].is_beacon for a in ids], dtype=bool)
+    radii = {t: r.coverage_radius for t, r in load_robot_types().items()}
+    goals = [SimpleNamespace(id=int(i), type=int(t), x=float(xy[0]), y=float(xy[1]))
+             for i, t, xy in zip(data['goal_id'], data['goal_type'], data['goal_xy'])]
+    record = SimpleNamespace(
+        times=np.asarray(data['times'], dtype=float),
+        positions=np.nan_to_num(np.asarray(data['positions'], dtype=float), nan=0.0),
+        velocities=np.asarray(data['velocities'], dtype=float),
+        alive=np.asarray(data['alive'], dtype=bool), modes=np.asarray(data['modes']),
+        digests=np.asarray(data['digests']), goal_ids=np.asarray(data['goal_ids']),
+        types=types, goals=goals)
+    if len(record.times) < 2 or 'fraction_inside' not in metrics:
+        row.update(error=metrics.get('error', 'run too short'), passed=False,
+                   target_applies=False, settled=False)
+        return row
+    # Settings as the sim applied them (sent when the sim time passed the planned time).
+    applied = [(float(e.get('sent_at', e['time'])), e['name'], float(e['value']))
+               for e in metrics.get('sim_settings', []) if e.get('ok')]
+    shape = load_shape(config['shape'])
+    radius = np.array([radii[int(t)] for t in types])
+    row.update(coverage_columns(record, shape, radius, plan['first'], plan['last']))
+    row.update(route_columns(data, record, ids, plan['first']))
+    row.update(link_columns(record, ids, is_beacon, applied, config, shape, plan['first']))
+    medium_file = run_dir / 'medium.json'
+    row.update({
+        'fraction_inside': metrics['fraction_inside'],
+        'epsilon_t': metrics.get('epsilon_t'), 'epsilon_g': metrics.get('epsilon_g'),
+        'assignment_agreement': metrics.get('assignment_agreement'),
+        'duplicate_goal_claims': metrics.get('duplicate_goal_claims'),
+        'min_separation_ratio': metrics.get('min_separation_ratio'),
+        'beacons_alive': int((is_beacon & record.alive[-1]).sum()),
+        'final_modes_normal': metrics.get('final_modes_normal'),
+        'rms_localization_error': metrics.get('rms_localization_error'),
+        'outcome': metrics.get('outcome'), 'sim_settings': metrics.get('sim_settings', []),
+        'settings_failed': [e for e in metrics.get('sim_settings', []) if not e.get('ok')],
+        'removals': plan['removals'],
+        'medium': json.loads(medium_file.read_text()) if medium_file.exists() else None,
+        'real_time_factor': metrics.get('real_time_factor'),
+        'duration': metrics.get('duration'),
+    })
+    return judge(row)
+
+
+def run_ros_study(args: argparse.Namespace, argv: list[str] | None) -> int:
+    """--ros: the cases through launch_swarm, one run at a time; faults_ros.*."""
+    import time
+
+    config = ros_config(args)
+    cases = fault_cases(config['ranges'])
+    wanted = set(args.cases.split(',')) if args.cases else set(ROS_CASES)
+    unknown = wanted - {c['name'] for c in cases}
+    if unknown:
+        print(f'fault_study.py: unknown cases {sorted(unknown)}; known with --ros: '
+              f'{[c["name"] for c in cases]}', file=sys.stderr)
+        return 2
+    cases = [c for c in cases if c['name'] in wanted]
+    out = pathlib.Path(args.out)
+    try:
+        if config['seeds'] < 1:
+            raise ScenarioError('--seeds must be at least 1')
+        if config['fault_time'] >= config['duration']:
+            raise ScenarioError('--fault-time must be before the end of --duration')
+        ros_launch_argv(cases[0], config, config['seed'], out / 'check')
+    except (ShapeError, ScenarioError, RobotTypeError, PartitionError) as exc:
+        print(f'fault_study.py: {exc}', file=sys.stderr)
+        return 2
+    out.mkdir(parents=True, exist_ok=True)
+    seeds = [config['seed'] + k for k in range(config['seeds'])]
+    rows: list[dict] = []
+    wall0 = time.monotonic()
+    for case in cases:
+        for seed in seeds:
+            row = run_ros_case(case, config, seed, out)
+            rows.append(row)
+            print(f'fault study (ROS): {case["name"]} seed {seed}: '
+                  f'{row.get("outcome", row.get("error"))}, passed {row["passed"]}, '
+                  f'{row["wall_seconds"]:.0f} s wall', flush=True)
+    summary = summarise(rows, cases)
+    payload = {'config': config, 'wall_seconds': time.monotonic() - wall0,
+               'command': ' '.join(['scripts/fault_study.py', *(
+                   argv if argv is not None else sys.argv[1:])]),
+               'cases': summary, 'trials': rows}
+    (out / 'faults_ros.json').write_text(json.dumps(_finite(payload), indent=2,
+                                                    default=_json_default), encoding='utf-8')
+    (out / 'faults_ros.md').write_text(markdown_table(summary, crashes=True),
+                                       encoding='utf-8')
+    plot(out / 'faults_ros.png', summary, title='Fault study through ROS')
+    print(markdown_table(summary, crashes=True))
+    print(f'fault study (ROS): {len(rows)} runs, {payload["wall_seconds"] / 60:.1f} min '
+          f'-> {out}')
+    return 0
 
 
 # ---------------------------------------------------------------------------- main
@@ -498,7 +802,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument('--seeds', type=int, default=None, help='seeds per case (default 2)')
     parser.add_argument('--seed', type=int, default=0, help='first seed')
     parser.add_argument('--workers', type=int, default=2)
-    parser.add_argument('--shape', default='circle_314')
+    parser.add_argument('--shape', default=None,
+                        help='shape (default circle_314; with --ros tests/data/square_8m.json)')
     parser.add_argument('--shape-scale', type=float, default=None)
     parser.add_argument('--half-size', type=float, default=None,
                         help='workspace half size of the random deployment [m]')
@@ -516,6 +821,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument('--cases', default='', help='comma-separated subset of case names')
     parser.add_argument('--quick', action='store_true',
                         help='tiny swarm and short trials (a test, seconds)')
+    parser.add_argument('--ros', action='store_true',
+                        help='run the cases through the full ROS system (launch_swarm, '
+                        'composed agents, one run at a time; default 12 agents, 4 beacons, '
+                        'the 8 m square in +/-15 m, cases ' + ','.join(ROS_CASES) + ')')
     return parser.parse_args(argv)
 
 
@@ -535,8 +844,9 @@ def study_config(args: argparse.Namespace) -> dict[str, Any]:
             base[key] = getattr(args, key)
     if args.ranges is not None:
         base['ranges'] = tuple(args.ranges)
-    base.update(shape=args.shape, method=args.method, fault_window=args.fault_window,
-                seed=args.seed, workers=args.workers, quick=args.quick)
+    base.update(shape=args.shape or 'circle_314', method=args.method,
+                fault_window=args.fault_window, seed=args.seed, workers=args.workers,
+                quick=args.quick)
     if args.quick:
         base['fault_window'] = min(base['fault_window'], 10.0)
     return base
@@ -544,6 +854,8 @@ def study_config(args: argparse.Namespace) -> dict[str, Any]:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    if args.ros:
+        return run_ros_study(args, argv)
     config = study_config(args)
     cases = fault_cases(config['ranges'])
     if args.cases:

@@ -92,3 +92,90 @@ def test_critical_range_is_the_longest_spanning_tree_edge():
 def test_bad_arguments_rejected(tmp_path, capsys, args):
     assert fault_study.main(['--out', str(tmp_path), '--quick', *args]) == 2
     assert 'fault_study.py:' in capsys.readouterr().err
+
+
+def test_count_loops_follows_next_hops():
+    assert fault_study.count_loops({0: {2: 1}, 1: {2: 2}, 2: {}}) == 0
+    assert fault_study.count_loops({0: {2: 1}, 1: {2: 0}}) == 2
+
+
+def test_the_fault_plan_becomes_launcher_flags(tmp_path):
+    config = fault_study.ros_config(fault_study.parse_args(['--out', '-', '--ros']))
+    cases = {c['name']: c for c in fault_study.fault_cases(config['ranges'])}
+    argv, plan = fault_study.ros_launch_argv(cases['obstacle'], config, 0, tmp_path)
+    assert argv[argv.index('--set-sim') + 1] == '80:radio_wall_speed_mps=1'
+    assert plan['last'] == 80.0 + 30.0   # the wall crosses +/-15 m at 1 m/s
+    assert argv[argv.index('--min-duration') + 1] == '170'
+    argv, plan = fault_study.ros_launch_argv(cases['kill_30'], config, 0, tmp_path)
+    removed = [argv[k + 1] for k, a in enumerate(argv) if a == '--remove']
+    assert len(removed) == 4 and all(80.0 <= float(r.split(':')[0]) <= 110.0
+                                      for r in removed)
+    argv, _ = fault_study.ros_launch_argv(cases['loss_20'], config, 0, tmp_path)
+    assert argv[argv.index('--set-sim') + 1] == '0:loss=0.2' and '--min-duration' not in argv
+
+
+def _synthetic_ros_run(run_dir):
+    """4 robots on the 8 m square (0-2 beacons); beacon 2 removed at 3 s, range 3 m at 2 s."""
+    from swarm_sim.fleet import RobotSpec, save_fleet
+
+    (run_dir / 'logs').mkdir(parents=True)
+    (run_dir / 'logs' / 'sim.log').write_text('[INFO] fine\n')
+    (run_dir / 'logs' / 'agents.log').write_text(
+        'Traceback (most recent call last):\n  ...\nRuntimeError: boom\n')
+    xy = np.array([[-2.0, -2.0], [2.0, -2.0], [2.0, 2.0], [-2.0, 2.0]])
+    save_fleet(run_dir / 'fleet.yaml', [RobotSpec(i, 1, i < 3, *map(float, xy[i]))
+                                          for i in range(4)])
+    times = np.arange(10) * 0.5
+    alive = np.ones((10, 4), bool)
+    alive[6:, 2] = False
+    hops = np.full((2, 4, 4), 255)
+    nxt = np.full((2, 4, 4), -1)
+    hops[0, 0, 3], nxt[0, 0, 3], hops[0, 1, 3], nxt[0, 1, 3] = 2, 1, 2, 0   # a loop 0-1-0
+    hops[1, 0, 2], nxt[1, 0, 2] = 3, 1          # a route to dead 2, 3 hops among 3 alive
+    np.savez(run_dir / 'record.npz', times=times, positions=np.repeat(xy[None], 10, 0),
+             velocities=np.zeros((10, 4, 2)), estimates=np.repeat(xy[None], 10, 0),
+             modes=np.zeros((10, 4), int), alive=alive,
+             goal_ids=np.tile([0, 0, 1, 1], (10, 1)), digests=np.full((10, 4), 7),
+             rounds=np.ones((10, 4), int), agent_ids=np.arange(4),
+             route_times=np.array([1.0, 4.5]), route_next=nxt, route_hops=hops,
+             route_stamp=np.array([[1.0] * 4, [4.5] * 4]),
+             goal_id=np.array([0, 1, 2]), goal_type=np.array([1, 1, 1]),
+             goal_xy=xy[[0, 1, 3]])
+    metrics = {'fraction_inside': 1.0, 'epsilon_t': 0.1, 'epsilon_g': 0.05,
+               'assignment_agreement': 1.0, 'duplicate_goal_claims': 1,
+               'min_separation_ratio': 4.0, 'outcome': 'settled', 'duration': 4.5,
+               'sim_settings': [{'time': 2.0, 'sent_at': 2.0, 'name': 'radio_range_m',
+                                 'value': 3.0, 'ok': True, 'reason': ''}]}
+    (run_dir / 'metrics.json').write_text(json.dumps({'trials': [metrics]}))
+
+
+def test_a_ros_run_becomes_a_row_of_the_table(tmp_path):
+    run_dir = tmp_path / 'range_3_s0'
+    _synthetic_ros_run(run_dir)
+    config = fault_study.ros_config(fault_study.parse_args(['--out', '-', '--ros']))
+    case = {'name': 'range_3', 'kind': 'range', 'value': 3.0}
+    plan = {'first': 2.0, 'last': 3.0, 'removals': [(3.0, [2])], 'settings': []}
+    row = fault_study.ros_row(case, config, 0, run_dir, plan, 1, 12.0)
+    assert ROW_KEYS <= set(row)
+    assert row['crashed'] == ['agents'] and not row['passed']
+    assert row['agents'] == 4 and row['agents_alive'] == 3 and row['beacons_alive'] == 2
+    assert row['settled'] and row['recovery_time'] == 0.0
+    assert row['goals_claimed'] == pytest.approx(2 / 3)   # goal 2 unclaimed
+    assert row['routing_loops'] == 2 and row['max_hops_seen'] == 3
+    assert row['count_to_infinity']             # 3 hops among 3 living agents
+    assert row['stale_routes_to_dead'] == 1
+    # 4 m apart with a 3 m range after t = 2 s: no links, every agent alone
+    assert row['max_components_after_fault'] == 4 and row['final_components'] == 3
+    assert row['min_beacons_heard'] == 0 and not row['target_applies']
+    summary = fault_study.summarise([row], [case])
+    table = fault_study.markdown_table(summary, crashes=True)
+    assert '| range_3 |' in table and '| crashed |' in table.splitlines()[0] + '|'
+    assert table.splitlines()[2].endswith('| 1/1 | 0/1 |')
+
+
+def test_a_ros_run_without_results_is_a_crash(tmp_path):
+    case = {'name': 'loss_0', 'kind': 'loss', 'value': 0.0}
+    row = fault_study.ros_row(case, {}, 0, tmp_path, {'first': 0.0, 'last': 0.0}, None, 5.0)
+    assert row['crashed'] == ['launcher'] and not row['passed'] and 'no results' in row['error']
+    summary = fault_study.summarise([row], [case])
+    assert summary['loss_0']['crashed'] == 1 and summary['loss_0']['passed'] == 0

@@ -1,9 +1,9 @@
-"""scripts/launch_swarm.py refuses a bad multi-host split in one line, before starting."""
+"""scripts/launch_swarm.py refuses a bad host split or fault spec in one line, before starting."""
 
 from __future__ import annotations
 
 import launch_swarm
-from launch_swarm import LaunchError, parse_agent_ids
+from launch_swarm import LaunchError, parse_agent_ids, parse_set_sim
 import pytest
 
 BASE = ['--agents', '8', '--beacons', '3', '--shape', 'tests/data/square_8m.json',
@@ -56,3 +56,46 @@ def test_main_refuses_in_one_line_without_starting(capsys, tmp_path):
     err = capsys.readouterr().err.strip()
     assert err == "launch_swarm.py: --local-agents '0-9': agent ids run 0..7 with --agents 8"
     assert not out.exists()
+
+
+@pytest.mark.parametrize(('spec', 'expected'), [
+    ('60:loss=0.2', (60.0, 'loss', 0.2)), ('0:loss=0', (0.0, 'loss', 0.0)),
+    ('90.5:radio_range_m=5', (90.5, 'radio_range_m', 5.0)),
+    (' 90 : radio_wall_speed_mps = 1 ', (90.0, 'radio_wall_speed_mps', 1.0))])
+def test_set_sim_specs(spec, expected):
+    assert parse_set_sim(spec) == expected
+
+
+@pytest.mark.parametrize(('spec', 'says'), [
+    ('loss=0.2', 'write TIME:NAME=VALUE'), ('60:loss', 'write TIME:NAME=VALUE'),
+    ('60:=0.2', 'write TIME:NAME=VALUE'), ('x:loss=0.2', "'x' is not a sim time"),
+    ('-5:loss=0.2', 'sim time >= 0'), ('nan:loss=0.2', 'sim time >= 0'),
+    ('60:gps_std=3', "no run-time parameter 'gps_std'; use one of loss, radio_range_m"),
+    ('60:loss=lots', "'lots' is not a number"), ('60:loss=1.5', 'packet loss must be in'),
+    ('60:radio_range_m=0', 'radio range must be a positive'),
+    ('60:radio_wall_speed_mps=-1', 'wall speed must be 0')])
+def test_bad_set_sim_specs_name_the_flag_and_the_fix(spec, says):
+    with pytest.raises(LaunchError, match=r'^--set-sim') as err:
+        parse_set_sim(spec)
+    assert says in str(err.value)
+
+
+def test_set_sim_is_sorted_checked_against_the_run_and_only_where_the_sim_runs():
+    args = _validate('--set-sim', '90:radio_range_m=3', '--set-sim', '30:loss=0.1',
+                     '--duration', '100', '--min-duration', '95')
+    assert args.sim_settings == [(30.0, 'loss', 0.1), (90.0, 'radio_range_m', 3.0)]
+    with pytest.raises(LaunchError, match='after the end of the run'):
+        _validate('--set-sim', '120:loss=0.1', '--duration', '100')
+    with pytest.raises(LaunchError, match='--min-duration 200 must be within'):
+        _validate('--min-duration', '200', '--duration', '100')
+    with pytest.raises(LaunchError, match='--set-sim acts from the host that runs the sim'):
+        _validate('--agents-only', '--local-agents', '4-7', '--domain', '42',
+                  '--set-sim', '60:loss=0.2')
+
+
+def test_main_refuses_a_bad_set_sim_in_one_line(capsys, tmp_path):
+    out = tmp_path / 'run'
+    assert launch_swarm.main([*BASE[:-1], str(out), '--set-sim', '60:range=5']) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("launch_swarm.py: --set-sim '60:range=5': the sim node has no")
+    assert '\n' not in err and not out.exists()
