@@ -1,0 +1,92 @@
+"""sim_node's run-time radio faults through ROS parameters (what launch_swarm --set-sim does).
+
+Three point-mass robots 6 m apart, no agents (the world is not held for them): a
+parameter client, as the launcher's, cuts the radio range, raises the packet loss and
+starts a sweeping wall; the medium's links and drop counters follow, and bad values
+are refused with the reason.
+"""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.parameter_client import AsyncParameterClient  # noqa: E402
+
+from swarm_agent.packet import BROADCAST, Packet  # noqa: E402
+from swarm_sim.fleet import RobotSpec, save_fleet  # noqa: E402
+from swarm_sim.sim_node import SimNode  # noqa: E402
+
+
+def _until(executor, condition, timeout=20.0):
+    deadline = time.monotonic() + timeout
+    while not condition() and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+    return condition()
+
+
+def test_range_loss_and_wall_set_at_run_time_change_the_medium(tmp_path):
+    fleet_file = tmp_path / 'fleet.yaml'
+    save_fleet(fleet_file, [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 1, True, 6.0, 0.0),
+                            RobotSpec(2, 1, False, 12.0, 0.0)])
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    executor = SingleThreadedExecutor(context=context)
+    sim = SimNode(context=context, parameter_overrides=[
+        Parameter('fleet_file', value=str(fleet_file)), Parameter('backend', value='pointmass'),
+        Parameter('real_time_factor', value=0.0), Parameter('max_agent_lag_s', value=0.0),
+        Parameter('half_size', value=20.0)])
+    probe = rclpy.create_node('fault_probe', context=context)
+    client = AsyncParameterClient(probe, 'sim')
+    executor.add_node(sim)
+    executor.add_node(probe)
+
+    def set_param(name, value):
+        future = client.set_parameters([Parameter(name, value=value)])
+        assert _until(executor, future.done), f'no answer setting {name}'
+        return future.result().results[0]
+
+    def broadcast(count):
+        # Straight into the sim's medium (what its /radio/tx callback does per frame)
+        for k in range(count):
+            sim.medium.transmit(sim.t, Packet(source=1, destination=BROADCAST, kind=0,
+                                              sequence=k, ttl=1, payload=b'hb'))
+
+    try:
+        assert _until(executor, client.services_are_ready)
+        assert _until(executor, lambda: sim.t > 0.5)
+        assert sorted(sim.medium.neighbours(1)) == [0, 2]
+        assert set_param('radio_range_m', 5.0).successful
+        assert _until(executor, lambda: sim.medium.neighbours(1) == [])  # links follow
+        refused = set_param('radio_range_m', -1.0)
+        assert not refused.successful and 'radio range must be a positive' in refused.reason
+        assert sim.medium.config.range_m == 5.0
+        assert set_param('radio_range_m', 25.0).successful
+        assert _until(executor, lambda: sorted(sim.medium.neighbours(1)) == [0, 2])
+
+        assert set_param('loss', 1.0).successful
+        before = sim.medium.stats.dropped_loss
+        broadcast(20)
+        assert _until(executor, lambda: sim.medium.stats.dropped_loss == before + 2 * 20)
+        assert not set_param('loss', 1.5).successful and sim.medium.config.loss == 1.0
+        assert set_param('loss', 0.0).successful
+
+        # A wall from x = -20 m at 5 m/s reaches the robots (x 0..12) within a few seconds
+        # of sim time and cuts 0-1 and 1-2 while it stands between them.
+        t0 = sim.t
+        assert set_param('radio_wall_speed_mps', 5.0).successful
+        assert sim.medium.wall is not None and sim.medium.wall.t0 == pytest.approx(t0)
+        assert _until(executor, lambda: len(sim.medium.neighbours(1)) < 2, timeout=30.0)
+        assert _until(executor, lambda: sim.medium.wall is None, timeout=30.0)  # it left
+        assert _until(executor, lambda: sorted(sim.medium.neighbours(1)) == [0, 2])
+    finally:
+        executor.shutdown()
+        sim.close()
+        sim.destroy_node()
+        probe.destroy_node()
+        rclpy.try_shutdown(context=context)
