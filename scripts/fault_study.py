@@ -610,17 +610,17 @@ def run_ros_case(case: dict, config: dict, seed: int, out: pathlib.Path) -> dict
     return ros_row(case, config, seed, run_dir, plan, returncode, time.monotonic() - wall0)
 
 
-def _crashed_nodes(run_dir: pathlib.Path, metrics: dict) -> list[str]:
-    """Nodes that died: the launcher's crash outcome, or a traceback in a node's log."""
+def _crashed_nodes(run_dir: pathlib.Path, metrics: dict) -> tuple[list[str], list[str]]:
+    """Nodes that died during the run (the launcher's crash outcome), and node logs with a
+    traceback (a crash, or an exception while the launcher stopped them at the end)."""
     crashed = []
     outcome = str(metrics.get('outcome', ''))
     if outcome.startswith('crash of '):
         crashed.append(outcome[len('crash of '):])
-    for log in sorted((run_dir / 'logs').glob('*.log')):
-        text = log.read_text(encoding='utf-8', errors='replace')
-        if 'Traceback (most recent call last)' in text and log.stem not in crashed:
-            crashed.append(log.stem)
-    return crashed
+    tracebacks = [log.stem for log in sorted((run_dir / 'logs').glob('*.log'))
+                  if 'Traceback (most recent call last)' in log.read_text(
+                      encoding='utf-8', errors='replace')]
+    return crashed, tracebacks
 
 
 def route_columns(data, record, ids: list[int], first: float) -> dict[str, Any]:
@@ -694,7 +694,7 @@ def ros_row(case: dict, config: dict, seed: int, run_dir: pathlib.Path, plan: di
         row.update(error=f'no results: {exc}', crashed=['launcher'], passed=False,
                    target_applies=False, settled=False)
         return row
-    row['crashed'] = _crashed_nodes(run_dir, metrics)
+    row['crashed'], row['tracebacks'] = _crashed_nodes(run_dir, metrics)
     if returncode is None:
         row['crashed'].append('timeout')
     ids = [int(a) for a in data['agent_ids']]

@@ -157,7 +157,7 @@ def test_a_ros_run_becomes_a_row_of_the_table(tmp_path):
     plan = {'first': 2.0, 'last': 3.0, 'removals': [(3.0, [2])], 'settings': []}
     row = fault_study.ros_row(case, config, 0, run_dir, plan, 1, 12.0)
     assert ROW_KEYS <= set(row)
-    assert row['crashed'] == ['agents'] and not row['passed']
+    assert row['crashed'] == [] and row['tracebacks'] == ['agents'] and not row['passed']
     assert row['agents'] == 4 and row['agents_alive'] == 3 and row['beacons_alive'] == 2
     assert row['settled'] and row['recovery_time'] == 0.0
     assert row['goals_claimed'] == pytest.approx(2 / 3)   # goal 2 unclaimed
@@ -170,6 +170,13 @@ def test_a_ros_run_becomes_a_row_of_the_table(tmp_path):
     summary = fault_study.summarise([row], [case])
     table = fault_study.markdown_table(summary, crashes=True)
     assert '| range_3 |' in table and '| crashed |' in table.splitlines()[0] + '|'
+    assert table.splitlines()[2].endswith('| 0/1 | 0/1 |')
+    metrics = json.loads((run_dir / 'metrics.json').read_text())
+    metrics['trials'][0]['outcome'] = 'crash of agents'
+    (run_dir / 'metrics.json').write_text(json.dumps(metrics))
+    row = fault_study.ros_row(case, config, 0, run_dir, plan, 1, 12.0)
+    assert row['crashed'] == ['agents']
+    table = fault_study.markdown_table(fault_study.summarise([row], [case]), crashes=True)
     assert table.splitlines()[2].endswith('| 1/1 | 0/1 |')
 
 
