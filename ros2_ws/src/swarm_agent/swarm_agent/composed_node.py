@@ -24,11 +24,14 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile
 from rclpy.time_source import TimeSource
 from std_msgs.msg import Int32MultiArray
 import yaml
 
-from swarm_agent.agent_node import AgentNode, make_executor
+from swarm_agent.agent_node import AgentNode, flush_radio, make_executor
+from swarm_mission import qos
+from swarm_msgs.msg import RadioPacket, RadioPacketArray
 
 SHARED = {
     'method': ('bubble', 'Formation method of every agent'),
@@ -37,6 +40,7 @@ SHARED = {
     'control_rate_hz': (50.0, 'LQR inner loop rate of every agent'),
     'localization_period_s': (3.0, 'Trilateration period of every agent'),
     'partition_locally': (False, 'Agents partition announced shapes themselves'),
+    'radio_tx_hz': (20.0, "Rate of the one batch of every agent's radio frames"),
     'type_counts': ('', 'Swarm composition for local partitioning'),
 }
 
@@ -62,6 +66,12 @@ class ComposedAgents(Node):
         # One /clock subscription for all: the container's time source drives every
         # agent's clock (the agents themselves run with use_sim_time false).
         self._time_source = TimeSource(node=self) if use_sim_time else None
+        # One batch of every agent's radio frames per period (20 messages a second for
+        # the whole swarm instead of one per frame per agent).
+        self._tx_pending: list[RadioPacket] = []
+        tx = self.create_publisher(RadioPacketArray, '/radio/tx', QoSProfile(**qos.RADIO))
+        self.create_timer(1.0 / p['radio_tx_hz'],
+                          lambda: flush_radio(tx, self._tx_pending, self.get_clock()))
         for robot in robots:
             agent_id = int(robot['id'])
             overrides = [
@@ -78,6 +88,7 @@ class ComposedAgents(Node):
                 Parameter('type_counts', value=p['type_counts']),
             ]
             node = AgentNode('agent', namespace=f'/agent_{agent_id}',
+                             tx_sink=self._tx_pending.extend,
                              parameter_overrides=overrides, context=self.context)
             if self._time_source is not None:
                 self._time_source.attach_clock(node.get_clock())

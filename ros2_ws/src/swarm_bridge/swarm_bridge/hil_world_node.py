@@ -90,7 +90,7 @@ class HilWorldNode(Node):
                                                   radio)
                          for k in self.boards}
         if p['relay_radio']:
-            self.create_subscription(RadioPacket, '/radio/tx', self._on_tx, radio)
+            self.create_subscription(RadioPacketArray, '/radio/tx', self._on_tx, radio)
         self.create_timer(p['pump_period'], self._pump)
         self.create_timer(1.0 / p['camera_rate_hz'], self._camera)
         self.get_logger().info(f'{len(self.robots)} emulated robots on {self.emulator.port}'
@@ -114,7 +114,11 @@ class HilWorldNode(Node):
             msg.pose.orientation.w = math.cos(yaw / 2.0)
             self._pose_pubs[k].publish(msg)
 
-    def _on_tx(self, msg: RadioPacket) -> None:
+    def _on_tx(self, msg: RadioPacketArray) -> None:
+        for packet in msg.packets:
+            self._relay(packet)
+
+    def _relay(self, msg: RadioPacket) -> None:
         if msg.source not in self.boards:
             return
         for k, pub in self._rx_pubs.items():

@@ -22,7 +22,7 @@ Topics
              ``/swarm/truth`` (swarm_msgs/SwarmTruth, for metrics only)
              ``/swarm/markers`` (visualization_msgs/MarkerArray, for RViz)
   subscribed ``/agent_K/cmd_force`` (geometry_msgs/WrenchStamped, N, map frame)
-             ``/radio/tx`` (swarm_msgs/RadioPacket, from every agent)
+             ``/radio/tx`` (swarm_msgs/RadioPacketArray, batches from the agents)
              ``/swarm/kill`` (std_msgs/Int32MultiArray: robots to remove, a fault)
 
 Faults: ``/swarm/kill`` removes robots; three parameters change the radio medium at run
@@ -212,7 +212,7 @@ class SimNode(Node):
             self.create_subscription(WrenchStamped, f'{ns}/cmd_force',
                                      lambda m, i=self.index[r.id]: self._on_force(i, m),
                                      sensor)
-        self.create_subscription(RadioPacket, '/radio/tx', self._on_tx, radio)
+        self.create_subscription(RadioPacketArray, '/radio/tx', self._on_tx, radio)
         self.create_subscription(Int32MultiArray, '/swarm/kill', self._on_kill, 10)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.medium.update_positions(self.ids, self.backend.positions())
@@ -251,9 +251,10 @@ class SimNode(Node):
         self.force_stamp[i] = stamp_seconds(stamp)
         self.force_wall[i] = time.monotonic()
 
-    def _on_tx(self, msg: RadioPacket) -> None:
-        if msg.source in self.index:
-            self.medium.transmit(self.t, packet_from_msg(msg))
+    def _on_tx(self, msg: RadioPacketArray) -> None:
+        for packet in msg.packets:
+            if packet.source in self.index:
+                self.medium.transmit(self.t, packet_from_msg(packet))
 
     def _on_kill(self, msg: Int32MultiArray) -> None:
         for agent in msg.data:
