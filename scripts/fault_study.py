@@ -535,18 +535,23 @@ ROUTE_FRESH_S = 5.0     # a route table older than this (sim s) is of a dead age
 NO_ROUTE = 255          # swarm_msgs/RouteEntry.INFINITE_HOPS, also "no entry"
 
 
+def _override(base: dict[str, Any], args: argparse.Namespace, keys: tuple[str, ...]) -> None:
+    """The arguments given explicitly (not None) replace the defaults in ``base``."""
+    for key in keys:
+        if getattr(args, key) is not None:
+            base[key] = getattr(args, key)
+    if args.ranges is not None:
+        base['ranges'] = tuple(args.ranges)
+
+
 def ros_config(args: argparse.Namespace) -> dict[str, Any]:
     """Defaults of the ROS study (the e2e test's 12-agent square), overridden by args."""
     base = {'agents': 12, 'beacons': 4, 'seeds': 1, 'half_size': 15.0, 'fault_time': 80.0,
             'duration': 240.0, 'observe': 60.0, 'ranges': (2.0,), 'wall_speed': 1.0,
             'shape': str(ROOT / 'tests' / 'data' / 'square_8m.json'), 'settle_hold': 3.0,
             'timeout': 1200.0}
-    for key in ('agents', 'beacons', 'seeds', 'half_size', 'fault_time', 'duration',
-                'observe', 'shape'):
-        if getattr(args, key) is not None:
-            base[key] = getattr(args, key)
-    if args.ranges is not None:
-        base['ranges'] = tuple(args.ranges)
+    _override(base, args, ('agents', 'beacons', 'seeds', 'half_size', 'fault_time',
+                           'duration', 'observe', 'shape'))
     base.update(method=args.method, fault_window=args.fault_window, seed=args.seed,
                 ros=True, composed=True)
     return base
@@ -743,19 +748,30 @@ def ros_row(case: dict, config: dict, seed: int, run_dir: pathlib.Path, plan: di
     return judge(row)
 
 
+def select_cases(cases: list[dict], spec: str, default: set[str] | None) -> list[dict] | None:
+    """The cases named in ``spec`` (a comma list), else those in ``default`` (None: all).
+
+    None, after a one-line error naming the known cases, when a name is unknown.
+    """
+    wanted = set(spec.split(',')) if spec else default
+    if wanted is None:
+        return cases
+    unknown = wanted - {c['name'] for c in cases}
+    if unknown:
+        print(f'fault_study.py: unknown cases {sorted(unknown)}; known: '
+              f'{[c["name"] for c in cases]}', file=sys.stderr)
+        return None
+    return [c for c in cases if c['name'] in wanted]
+
+
 def run_ros_study(args: argparse.Namespace, argv: list[str] | None) -> int:
     """--ros: the cases through launch_swarm, one run at a time; faults_ros.*."""
     import time
 
     config = ros_config(args)
-    cases = fault_cases(config['ranges'])
-    wanted = set(args.cases.split(',')) if args.cases else set(ROS_CASES)
-    unknown = wanted - {c['name'] for c in cases}
-    if unknown:
-        print(f'fault_study.py: unknown cases {sorted(unknown)}; known with --ros: '
-              f'{[c["name"] for c in cases]}', file=sys.stderr)
+    cases = select_cases(fault_cases(config['ranges']), args.cases, set(ROS_CASES))
+    if cases is None:
         return 2
-    cases = [c for c in cases if c['name'] in wanted]
     out = pathlib.Path(args.out)
     try:
         if config['seeds'] < 1:
@@ -838,12 +854,8 @@ def study_config(args: argparse.Namespace) -> dict[str, Any]:
         base = {'agents': 20, 'beacons': 4, 'seeds': 2, 'shape_scale': 1.0,
                 'half_size': 25.0, 'fault_time': 120.0, 'duration': 360.0, 'ranges': RANGES,
                 'wall_speed': 1.0, 'observe': 90.0}
-    for key in ('agents', 'beacons', 'seeds', 'shape_scale', 'half_size', 'fault_time',
-                'duration', 'observe'):
-        if getattr(args, key) is not None:
-            base[key] = getattr(args, key)
-    if args.ranges is not None:
-        base['ranges'] = tuple(args.ranges)
+    _override(base, args, ('agents', 'beacons', 'seeds', 'shape_scale', 'half_size',
+                           'fault_time', 'duration', 'observe'))
     base.update(shape=args.shape or 'circle_314', method=args.method,
                 fault_window=args.fault_window, seed=args.seed, workers=args.workers,
                 quick=args.quick)
@@ -857,17 +869,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.ros:
         return run_ros_study(args, argv)
     config = study_config(args)
-    cases = fault_cases(config['ranges'])
-    if args.cases:
-        wanted = set(args.cases.split(','))
-        unknown = wanted - {c['name'] for c in cases}
-        if unknown:
-            print(f'fault_study.py: unknown cases {sorted(unknown)}; known: '
-                  f'{[c["name"] for c in cases]}', file=sys.stderr)
-            return 2
-        cases = [c for c in cases if c['name'] in wanted]
-    elif args.quick:
-        cases = [c for c in cases if c['name'] in QUICK_CASES]
+    cases = select_cases(fault_cases(config['ranges']), args.cases,
+                         set(QUICK_CASES) if args.quick else None)
+    if cases is None:
+        return 2
     try:
         if config['seeds'] < 1 or config['workers'] < 1:
             raise ScenarioError('--seeds and --workers must be at least 1')

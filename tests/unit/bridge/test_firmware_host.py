@@ -7,6 +7,7 @@ import math
 import pathlib
 import re
 
+from board_frames import board_messages
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -18,15 +19,6 @@ HEADER = pathlib.Path(__file__).resolve().parents[3] / 'firmware/include/swarm_p
 
 def command_frame(message: protocol.Message, address: int = HOST) -> bytes:
     return xbee.encode(xbee.RxPacket(address, message.encode()))
-
-
-def board_messages(data: bytes) -> list:
-    out = []
-    for frame_data in xbee.FrameDecoder().feed(data):
-        frame = xbee.parse_api_frame(frame_data)
-        assert isinstance(frame, xbee.TxRequest)
-        out.append((frame.address, protocol.decode_message(frame.data)))
-    return out
 
 
 def test_header_constants_equal_the_python_ones():

@@ -19,6 +19,7 @@ import math
 import re
 import subprocess
 
+from board_frames import board_messages
 import pic_toolchain
 import pytest
 
@@ -98,15 +99,6 @@ def emulated():
     return board, bytes(sent)
 
 
-def messages(data: bytes) -> list:
-    out = []
-    for frame_data in xbee.FrameDecoder().feed(data):
-        tx = xbee.parse_api_frame(frame_data)
-        assert isinstance(tx, xbee.TxRequest)
-        out.append((tx.address, protocol.decode_message(tx.data)))
-    return out
-
-
 def channel_patterns(writes) -> list[list[tuple[float, int]]]:
     """Per motor channel: (ms, coil pattern) at every change."""
     porta = portc = 0
@@ -125,7 +117,7 @@ def channel_patterns(writes) -> list[list[tuple[float, int]]]:
 
 def test_board_sends_what_the_emulator_sends(gpsim_run, emulated):
     """Same messages; wheel rates are checked below, cmd_age_ms to the chip's latency."""
-    chip, emu = messages(gpsim_run[0]), messages(emulated[1])
+    chip, emu = board_messages(gpsim_run[0]), board_messages(emulated[1])
     assert [type(m).__name__ for _, m in chip] == [type(m).__name__ for _, m in emu]
     assert len([m for _, m in chip if isinstance(m, protocol.Status)]) == 6
     for (a_chip, m_chip), (a_emu, m_emu) in zip(chip, emu):
@@ -157,7 +149,7 @@ def test_watchdog_stops_the_coils_500_ms_after_the_command(gpsim_run):
 def test_wheels_step_at_the_mixed_rates(gpsim_run, emulated):
     rates, _ = protocol.mix_fixed(300, 90)
     board, sent = emulated
-    statuses = [m for _, m in messages(gpsim_run[0]) if isinstance(m, protocol.Status)]
+    statuses = [m for _, m in board_messages(gpsim_run[0]) if isinstance(m, protocol.Status)]
     assert statuses[1].rates == rates
     for ch, changes in enumerate(channel_patterns(gpsim_run[1])):
         phases = [HALF_STEP.index(p) for _, p in changes if p]
