@@ -39,6 +39,7 @@ the others' addresses there.
 from __future__ import annotations
 
 import argparse
+import ctypes
 import os
 import pathlib
 import resource
@@ -51,6 +52,7 @@ import time
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
+PR_SET_PDEATHSIG = 1   # linux/prctl.h
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -217,6 +219,19 @@ def validate(args: argparse.Namespace):
     return shape, counts, beacons, fleet
 
 
+def _die_with_parent() -> None:
+    """In the child, before exec: SIGTERM when the launcher dies, however it dies.
+
+    The children run in their own sessions (so that Ctrl-C reaches each node once, from
+    the launcher), which also keeps a SIGKILL of the launcher from reaching them: a
+    benchmark that killed an overrunning launcher left 100 agent processes running.
+    Linux's PR_SET_PDEATHSIG closes that gap; elsewhere it is a no-op.
+    """
+    if sys.platform.startswith('linux'):
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
 class Children:
     """Child processes, each in its own process group, with logs in out/logs."""
 
@@ -230,7 +245,7 @@ class Children:
         log = open(self.log_dir / f'{name}.log', 'w', encoding='utf-8')  # noqa: SIM115
         self.procs[name] = subprocess.Popen(
             [sys.executable, *args], stdout=log, stderr=subprocess.STDOUT, env=self.env,
-            cwd=str(ROOT), start_new_session=True)
+            cwd=str(ROOT), start_new_session=True, preexec_fn=_die_with_parent)
 
     def kill(self, name: str) -> None:
         proc = self.procs.get(name)
@@ -340,10 +355,6 @@ def _peers() -> str:
 def run_agents_only(children: Children, args: argparse.Namespace, fleet,
                     fleet_file: pathlib.Path, counts: dict[int, int], domain: int) -> int:
     """Run this host's agents for a world on another host until Ctrl-C (or SIGTERM)."""
-    def interrupt(signum, frame):
-        raise KeyboardInterrupt
-
-    signal.signal(signal.SIGTERM, interrupt)
     crashed = None
     try:
         start_agents(children, args, fleet, fleet_file, counts)
@@ -422,8 +433,15 @@ class RouteRecorder:
                     for k, v in self.samples.items()}
 
 
+def _interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    # SIGTERM (a supervisor, a timeout) stops the run like Ctrl-C: children stopped,
+    # metrics written.
+    signal.signal(signal.SIGTERM, _interrupt)
     out = pathlib.Path(args.out).resolve()
     try:
         shape, counts, beacons, fleet = validate(args)
@@ -572,9 +590,12 @@ def main(argv: list[str] | None = None) -> int:
         wall = time.monotonic() - wall0
         cpu = children.cpu_seconds()
         # Who listens to ground truth? Only the monitor may (agents never see truth).
-        truth_readers = sorted({f'{i.node_namespace.rstrip("/")}/{i.node_name}'
-                                for i in monitor.get_subscriptions_info_by_topic(
-                                    '/swarm/truth')})
+        try:
+            truth_readers = sorted({f'{i.node_namespace.rstrip("/")}/{i.node_name}'
+                                    for i in monitor.get_subscriptions_info_by_topic(
+                                        '/swarm/truth')})
+        except RuntimeError:    # rclpy.RCLError: Ctrl-C already shut the context down
+            truth_readers = []
         children.stop_all()
         executor.shutdown()
         monitor_record = monitor.snapshot()

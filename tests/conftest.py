@@ -81,7 +81,8 @@ class ProcessGroup:
                     pass
         for proc in self.procs:
             try:
-                proc.wait(timeout=5)
+                # longer than a launcher's own grace for its children (5 s)
+                proc.wait(timeout=12)
             except subprocess.TimeoutExpired:
                 try:
                     os.killpg(proc.pid, signal.SIGKILL)
