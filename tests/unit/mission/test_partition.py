@@ -71,10 +71,31 @@ def test_bubble_packing_beats_fractals_and_meets_the_target_on_a_thesis_shape():
 
 
 def test_epsilon_t_rises_with_boundary_length_at_constant_area():
-    # Table 4.3: same area (314 m^2) and swarm, boundary 62.8 -> 128.36 m.
-    means = [np.mean([partition(load_shape(f'table43_{i}'), SWARM, RADII, 'bubble',
-                                seed=s).epsilon_t for s in range(2)]) for i in range(1, 5)]
-    assert all(np.diff(means) > 0), means
+    # Table 4.3: same area (314 m^2) and swarm, boundary 62.8 -> 128.36 m. The thesis's
+    # trend comes with a boundary row held inside the contour (boundary='mirror'); with
+    # the row on the contour (default 'layer') the straight 52 x 6 m strip is an almost
+    # perfect three-row lattice, so only the complex contour stays the most irregular.
+    mirror = PartitionConfig(bubble=BubbleConfig(boundary='mirror'))
+    for config, monotone in ((mirror, True), (None, False)):
+        means = [np.mean([partition(load_shape(f'table43_{i}'), SWARM, RADII, 'bubble',
+                                    seed=s, config=config).epsilon_t for s in range(2)])
+                 for i in range(1, 5)]
+        assert all(np.diff(means) > 0) if monotone else means[3] == max(means), means
+
+
+@pytest.mark.parametrize('name', ['circle_314', 'thesis_shape_1', 'thesis_shape_2',
+                                  'thesis_shape_3', 'thesis_shape_4'])
+def test_issue_4_mesh_quality_target_on_thesis_like_shapes(name):
+    # Issue 4: 50 agents 20:20:10, mean epsilon_t <= 0.5 and epsilon_g <= 0.08 over
+    # seeds (interior definition). Missed on thesis_shape_3 (eps_t 0.60) and _4 (eps_g
+    # 0.09) while the boundary row was held half a spacing inside the contour: its
+    # Delaunay hull slivers had their centroids inside the shape (bubble_packing doc).
+    shape = load_shape(name)
+    runs = [partition(shape, SWARM, RADII, 'bubble', seed=s) for s in range(4)]
+    assert np.mean([r.epsilon_t for r in runs]) <= 0.5
+    assert np.mean([r.epsilon_g for r in runs]) <= 0.08
+    for r in runs:
+        assert_feasible(r, shape, SWARM)
 
 
 def test_incremental_remesh_keeps_ids_and_stays_close_on_an_unchanged_shape():

@@ -22,14 +22,32 @@ Force laws (``BubbleConfig.force``):
   w=1.5: repulsive below the target distance l_ij, weakly attractive up to 1.5 l_ij,
   zero force and a stable equilibrium at l_ij.
 
-Spacing (``BubbleConfig.spacing``): ``'auto'`` derives the target distance from the
-area and the number of agents, the side of a hexagonal lattice cell of area A/n,
-l = sqrt(2 A / (sqrt(3) n)), never below r_i + r_j; ``'thesis'`` uses l0.
+Shape repulsion (``BubbleConfig.boundary``):
 
-Shape repulsion (``BubbleConfig.boundary``): ``'mirror'`` (default) applies the
-interbubble law to each bubble's mirror image in the nearest boundary point, which
-settles the boundary row half a spacing from the boundary; ``'thesis'`` is eq. 3.97,
-k_r sum_k (x_i - z_k) / |x_i - z_k|^3 dz over equally spaced boundary samples (eq. 3.98).
+- ``'layer'`` (default): the boundary row lies on the contour. Every bubble is kept in
+  the boundary layer, the shape eroded by the largest coverage radius r_max (the closest
+  one common row can come to the contour with every circle inside), as a hard
+  constraint in place of a repulsion: the lattice pressure of eq. 3.95 presses the
+  outer bubbles onto that offset curve. Why (issue 4, measured on thesis_shape_3/_4):
+  with the boundary row held half a spacing inside (``'mirror'``), or at each bubble's
+  own radius, the outer nodes form a wavy or concave row whose Delaunay hull triangles
+  (three boundary nodes bridging a concavity, a hole corner or a dent of the row) have
+  their centroids inside the shape; those slivers (r/R near 0) made most of epsilon_g
+  (eq. 3.106) and turned boundary nodes of degree 4-5 into "interior" nodes for
+  epsilon_t (eq. 3.104). A row on one common offset curve leaves such triangles outside
+  the shape. Running longer (tolerance 1e-4, 3000 iterations) or changing the spacing by
+  5 % did not remove them.
+- ``'mirror'``: the interbubble law on each bubble's mirror image in the nearest boundary
+  point, which settles the boundary row half a spacing from the boundary.
+- ``'thesis'``: eq. 3.97, k_r sum_k (x_i - z_k) / |x_i - z_k|^3 dz over equally spaced
+  boundary samples (eq. 3.98).
+
+Spacing (``BubbleConfig.spacing``): ``'auto'`` derives the target distance from the
+region and the number of agents, never below r_i + r_j. With ``'layer'`` the nodes fill
+the layer with B of them on its boundary: Pick's theorem on the triangular lattice,
+A_layer = (n - B/2 - chi) sqrt(3)/2 l^2 with B = P_layer / l (``lattice_spacing``).
+Otherwise the boundary row sits half a spacing inside and the hexagonal cells tile the
+shape, l = sqrt(2 A / (sqrt(3) n)) (``auto_spacing``). ``'thesis'`` uses l0.
 
 Incremental mode (``relax`` from previous positions, thesis 4.3.4): the previous goals
 are projected into the changed shape and re-meshed from there.
@@ -58,7 +76,7 @@ class BubbleConfig:
 
     force: str = 'shimada'          # 'shimada' | 'thesis' (eq. 3.95 in metres)
     spacing: str = 'auto'           # 'auto' (from area and agents) | 'thesis' (l0)
-    boundary: str = 'mirror'        # 'mirror' | 'thesis' (eq. 3.97)
+    boundary: str = 'layer'         # 'layer' | 'mirror' | 'thesis' (eq. 3.97)
     a: float = -0.1                 # eq. 3.95, thesis chapter 4
     b: float = -0.2
     c: float = -0.3
@@ -76,7 +94,7 @@ class BubbleConfig:
     def __post_init__(self) -> None:
         checks = {'force': self.force in ('shimada', 'thesis'),
                   'spacing': self.spacing in ('auto', 'thesis'),
-                  'boundary': self.boundary in ('mirror', 'thesis'),
+                  'boundary': self.boundary in ('layer', 'mirror', 'thesis'),
                   'l0': self.l0 > 0, 'spacing_factor': self.spacing_factor > 0,
                   'step': self.step > 0, 'max_step': self.max_step > 0,
                   'max_iterations': self.max_iterations >= 0, 'tolerance': self.tolerance > 0,
@@ -84,7 +102,8 @@ class BubbleConfig:
         bad = [k for k, ok in checks.items() if not ok]
         if bad:
             raise PartitionError(f'bad bubble packing parameters {bad}: forces are shimada|'
-                                 'thesis, spacing auto|thesis, boundary mirror|thesis, '
+                                 'thesis, spacing auto|thesis, boundary layer|mirror|'
+                                 'thesis, '
                                  'lengths and steps positive')
 
 
@@ -101,6 +120,33 @@ def interbubble_force(length: np.ndarray, a: float, b: float, c: float, d: float
 def auto_spacing(area: float, n: int, factor: float = 1.0) -> float:
     """Side of the hexagonal lattice whose n cells cover ``area``: sqrt(2 A / (sqrt(3) n))."""
     return factor * float(np.sqrt(2.0 * area / (np.sqrt(3.0) * max(n, 1))))
+
+
+def lattice_spacing(area: float, perimeter: float, n: int, euler: int = 1) -> float:
+    """Side l of the triangular lattice of ``n`` nodes filling a region, B of them on its boundary.
+
+    Pick's theorem on the triangular lattice (cell sqrt(3)/2 l^2, B = perimeter / l,
+    I = n - B, ``euler`` = components - holes): area = (I + B/2 - euler) sqrt(3)/2 l^2,
+    a quadratic in l.
+    """
+    m = max(n - euler, 1)
+    root = np.sqrt(3 / 16 * perimeter ** 2 + 2 * np.sqrt(3) * m * area)
+    return float((np.sqrt(3) / 4 * perimeter + root) / (np.sqrt(3) * m))
+
+
+def boundary_layer(region: Polygon, r_max: float):
+    """Where the boundary row lies (``boundary='layer'``): ``region`` eroded by ``r_max``.
+
+    None when nothing is left. The buffer's arcs around reflex vertices are inscribed
+    chords, which would let a circle of radius r_max poke out: the erosion is padded by
+    1 / cos(pi / (4 quad_segs)).
+    """
+    layer = region.buffer(-r_max / np.cos(np.pi / 32) - 1e-9, quad_segs=8)
+    return None if layer.is_empty or layer.area <= 0 else layer
+
+
+def _euler(geom) -> int:
+    return sum(1 - len(p.interiors) for p in getattr(geom, 'geoms', [geom]))
 
 
 def _eroded(region: Polygon, radii: np.ndarray) -> dict[float, object]:
@@ -166,15 +212,25 @@ def _project_inside(x: np.ndarray, radii: np.ndarray, inner: dict[float, object]
             x[bad] = shapely.get_coordinates(lines).reshape(-1, 2, 2)[:, 1]
 
 
+def _project_into(x: np.ndarray, zone) -> None:
+    """Move the points outside ``zone`` onto its nearest boundary point."""
+    bad = np.flatnonzero(~shapely.contains_xy(zone, x[:, 0], x[:, 1]))
+    if len(bad):
+        lines = shapely.shortest_line(shapely.points(x[bad]), zone.boundary)
+        x[bad] = shapely.get_coordinates(lines).reshape(-1, 2, 2)[:, 1]
+
+
 def _pair_targets(radii: np.ndarray, pairs: np.ndarray, spacing: float) -> np.ndarray:
     return np.maximum(spacing, radii[pairs[:, 0]] + radii[pairs[:, 1]])
 
 
 def relax(region: Polygon, x0: np.ndarray, radii: np.ndarray, spacing: float,
-          config: BubbleConfig) -> tuple[np.ndarray, int, bool]:
+          config: BubbleConfig, layer=None) -> tuple[np.ndarray, int, bool]:
     """Bubble meshing process: integrate eq. 3.95 + shape repulsion to equilibrium.
 
-    Returns (positions, iterations, converged).
+    With ``layer`` (``boundary='layer'``, see ``boundary_layer``) there is no repulsion
+    from the contour: every step is projected into the layer, so the outer bubbles end on
+    one offset curve. Returns (positions, iterations, converged).
     """
     x = np.array(x0, dtype=float)
     radii = np.asarray(radii, dtype=float)
@@ -217,7 +273,9 @@ def relax(region: Polygon, x0: np.ndarray, radii: np.ndarray, spacing: float,
             f = (mag / dist)[:, None] * delta
             np.add.at(force, pairs[:, 0], f)
             np.add.at(force, pairs[:, 1], -f)
-        if samples is None:
+        if layer is not None:
+            pass     # hard constraint below, no shape force
+        elif samples is None:
             # Mirror image across the nearest boundary point: same law at distance 2 d.
             pts = shapely.points(x)
             near = shapely.get_coordinates(shapely.shortest_line(pts, boundary)).reshape(-1, 2,
@@ -243,6 +301,8 @@ def relax(region: Polygon, x0: np.ndarray, radii: np.ndarray, spacing: float,
         too_far = norm > limit
         move[too_far] *= (limit / norm[too_far])[:, None]
         x_new = x + move
+        if layer is not None:
+            _project_into(x_new, layer)
         _project_inside(x_new, radii, inner)
         biggest = float(np.abs(x_new - x).max())
         x = x_new
@@ -288,7 +348,11 @@ def bubble_pack(region: Polygon, radii: np.ndarray, rng: np.random.Generator,
     radii = np.asarray(radii, dtype=float)
     n = len(radii)
     need = check_fits(region.area, radii)
-    if config.spacing == 'auto':
+    layer = boundary_layer(region, float(radii.max())) if config.boundary == 'layer' else None
+    if config.spacing == 'auto' and layer is not None:
+        spacing = config.spacing_factor * lattice_spacing(layer.area, layer.length, n,
+                                                          _euler(layer))
+    elif config.spacing == 'auto':
         spacing = auto_spacing(region.area, n, config.spacing_factor)
     else:
         spacing = config.l0
@@ -317,7 +381,7 @@ def bubble_pack(region: Polygon, radii: np.ndarray, rng: np.random.Generator,
     if previous is not None and keep.any():
         # Coincident projected goals would have no direction to separate: jitter them.
         x0 = x0 + rng.normal(scale=1e-3 * spacing, size=x0.shape) * keep[:, None]
-    x, iterations, converged = relax(region, x0, radii, spacing, config)
+    x, iterations, converged = relax(region, x0, radii, spacing, config, layer=layer)
     x = separate(region, x, radii)
     outside, pairs = placement_violations(x, radii, region, tol=1e-7)
     if len(outside) or len(pairs):
