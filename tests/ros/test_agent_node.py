@@ -14,6 +14,7 @@ from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile  # noqa: E402
 
 from swarm_agent.agent_node import AgentNode  # noqa: E402
+from swarm_agent.brain import BrainConfigError  # noqa: E402
 from swarm_mission import qos  # noqa: E402
 from swarm_mission.conversions import goals_to_msg, shape_to_msg  # noqa: E402
 from swarm_mission.goals import Goal  # noqa: E402
@@ -84,4 +85,16 @@ def test_beacon_agent_drives_to_its_goal_and_reports(tmp_path):
         executor.shutdown()
         agent.destroy_node()
         probe.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+@pytest.mark.parametrize('rate', ['radio_tx_hz', 'control_rate_hz'])
+def test_a_rate_of_zero_is_refused_with_its_name(rate):
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        with pytest.raises(BrainConfigError, match=f'{rate} must be above 0 Hz'):
+            AgentNode('agent', namespace='/agent_1', context=context,
+                      parameter_overrides=[Parameter(rate, value=0.0)])
+    finally:
         rclpy.try_shutdown(context=context)

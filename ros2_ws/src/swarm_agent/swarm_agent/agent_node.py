@@ -40,6 +40,7 @@ from rclpy.qos import QoSProfile
 from sensor_msgs.msg import Imu
 
 from swarm_agent.agent_factory import make_brain, type_counts_from
+from swarm_agent.brain import BrainConfigError
 from swarm_agent.conversions import (
     packet_from_msg,
     packet_to_msg,
@@ -86,6 +87,9 @@ PARAMETERS = {
 }
 
 
+RATES_HZ = ('control_rate_hz', 'keepalive_hz', 'radio_tx_hz', 'state_rate_hz')
+
+
 def flush_radio(publisher, pending: list[RadioPacket], clock) -> None:
     """Publish the frames sent since the last call as one RadioPacketArray."""
     if pending:
@@ -108,6 +112,11 @@ class AgentNode(Node):
         for name, (default, text) in PARAMETERS.items():
             self.declare_parameter(name, default, ParameterDescriptor(description=text))
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        for rate in RATES_HZ:
+            if not p[rate] > 0.0:
+                raise BrainConfigError(
+                    f'parameter {rate} must be above 0 Hz, got {p[rate]}: set it in '
+                    f'config/agent.yaml or with --ros-args -p {rate}:=<Hz>')
         self.params = p
         self.brain = make_brain(
             agent_id=p['agent_id'], agent_type=p['agent_type'], is_beacon=p['is_beacon'],

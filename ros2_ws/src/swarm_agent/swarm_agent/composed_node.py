@@ -30,6 +30,7 @@ from std_msgs.msg import Int32MultiArray
 import yaml
 
 from swarm_agent.agent_node import AgentNode, flush_radio, make_executor
+from swarm_agent.brain import BrainConfigError
 from swarm_mission import qos
 from swarm_msgs.msg import RadioPacket, RadioPacketArray
 
@@ -68,6 +69,9 @@ class ComposedAgents(Node):
         self._time_source = TimeSource(node=self) if use_sim_time else None
         # One batch of every agent's radio frames per period (20 messages a second for
         # the whole swarm instead of one per frame per agent).
+        if not p['radio_tx_hz'] > 0.0:
+            raise BrainConfigError(f'parameter radio_tx_hz must be above 0 Hz, got '
+                                   f'{p["radio_tx_hz"]}')
         self._tx_pending: list[RadioPacket] = []
         tx = self.create_publisher(RadioPacketArray, '/radio/tx', QoSProfile(**qos.RADIO))
         self.create_timer(1.0 / p['radio_tx_hz'],
