@@ -389,9 +389,11 @@ class RouteRecorder:
     def __init__(self, node, ids: list[int]) -> None:
         from rclpy.qos import QoSProfile
 
+        from swarm_agent.conversions import stamp_seconds
         from swarm_mission import qos
         from swarm_msgs.msg import RouteTable
 
+        self._seconds = stamp_seconds   # imported here: the launcher loads ROS lazily
         self.ids = list(ids)
         self.index = {a: k for k, a in enumerate(self.ids)}
         self.lock = threading.Lock()
@@ -417,7 +419,7 @@ class RouteRecorder:
                 if j is not None:
                     self.next[k, j] = int(r.next_hop)
                     self.hops[k, j] = int(r.hop_count)
-            self.stamp[k] = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+            self.stamp[k] = self._seconds(msg.header.stamp)
 
     def sample(self, t: float) -> None:
         with self.lock:

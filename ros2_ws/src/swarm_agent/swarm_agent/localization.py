@@ -166,11 +166,11 @@ class Localizer:
                 self.stats['rejected'] += 1
             else:
                 z = fix.position + shift
-                worst_std = float(np.sqrt(np.linalg.eigvalsh(fix.covariance)[-1]))
+                variances, axes = np.linalg.eigh(fix.covariance)   # ascending
                 if fix.residual > self.config.max_residual:
                     self.stats['rejected'] += 1
-                elif worst_std > self.config.max_fix_std:
-                    self._update_along_beacon_line(z, fix.covariance)
+                elif variances[-1] > self.config.max_fix_std ** 2:
+                    self._update_along_beacon_line(z, axes[:, 0], float(variances[0]))
                     return self.mode
                 elif self.kf.innovation_distance(z, fix.covariance) > self.config.gate:
                     # Judge a suspicious fix by the ranges alone: from the prior, the
@@ -196,7 +196,7 @@ class Localizer:
         self.missed_localizations = 0
         self.stats['localizations'] += 1
 
-    def _update_along_beacon_line(self, z: np.ndarray, cov: np.ndarray) -> None:
+    def _update_along_beacon_line(self, z: np.ndarray, u: np.ndarray, var: float) -> None:
         """A fix determined along one direction only: use that direction alone.
 
         Beacons nearly in line as seen from the agent barely constrain the position
@@ -206,10 +206,9 @@ class Localizer:
         Beyond ``max_fix_std`` the solution across the line can sit on a fold or on the
         mirror image of the agent, with a covariance that does not describe it, so only
         the well-determined component along the line updates the filter (gated at
-        chi-square 1 dof, 99.9 %); the IMU carries the other.
+        chi-square 1 dof, 99.9 %); the IMU carries the other. ``u`` is that axis (the
+        covariance's eigenvector of least variance) and ``var`` its variance.
         """
-        values, vectors = np.linalg.eigh(cov)
-        u, var = vectors[:, 0], float(values[0])
         innovation = float(u @ (z - self.position))
         if innovation ** 2 / (float(u @ self.kf.P[:2, :2] @ u) + var) > GATE_1DOF:
             self.stats['gated'] += 1
