@@ -391,6 +391,7 @@ class RouteRecorder:
 
         from swarm_agent.conversions import stamp_seconds
         from swarm_mission import qos
+        from swarm_mission.ros_entities import lean_subscription
         from swarm_msgs.msg import RouteTable
 
         self._seconds = stamp_seconds   # imported here: the launcher loads ROS lazily
@@ -404,8 +405,8 @@ class RouteRecorder:
         self.samples: dict[str, list] = {'route_times': [], 'route_next': [],
                                          'route_hops': [], 'route_stamp': []}
         for a in self.ids:
-            node.create_subscription(RouteTable, f'/agent_{a}/routes', self._on_routes,
-                                     QoSProfile(**qos.STATE))
+            lean_subscription(node, RouteTable, f'/agent_{a}/routes', self._on_routes,
+                              QoSProfile(**qos.STATE))
 
     def _on_routes(self, msg) -> None:
         k = self.index.get(int(msg.owner))

@@ -15,6 +15,7 @@ from rclpy.qos import QoSProfile  # noqa: E402
 
 from swarm_agent.agent_node import AgentNode  # noqa: E402
 from swarm_agent.brain import BrainConfigError  # noqa: E402
+from swarm_agent.conversions import frames_from_msg  # noqa: E402
 from swarm_mission import qos  # noqa: E402
 from swarm_mission.conversions import goals_to_msg, shape_to_msg  # noqa: E402
 from swarm_mission.goals import Goal  # noqa: E402
@@ -47,7 +48,7 @@ def test_beacon_agent_drives_to_its_goal_and_reports(tmp_path):
     probe.create_subscription(RouteTable, '/agent_5/routes', got['routes'].append,
                               QoSProfile(**qos.STATE))
     probe.create_subscription(WrenchStamped, '/agent_5/cmd_force', got['force'].append,
-                              QoSProfile(**qos.SENSOR))
+                              QoSProfile(**qos.COMMAND))
     shape_pub = probe.create_publisher(FormationShape, '/swarm/shape', QoSProfile(**qos.LATCHED))
     goals_pub = probe.create_publisher(GoalArray, '/swarm/goals', QoSProfile(**qos.LATCHED))
     gps_pub = probe.create_publisher(PoseWithCovarianceStamped, '/agent_5/gps',
@@ -70,7 +71,7 @@ def test_beacon_agent_drives_to_its_goal_and_reports(tmp_path):
             fix.pose.covariance[0] = fix.pose.covariance[7] = 0.01
             gps_pub.publish(fix)
             executor.spin_once(timeout_sec=0.05)
-        frames = [f for batch in got['tx'] for f in batch.packets]
+        frames = [f for batch in got['tx'] for _, f in frames_from_msg(batch)]
         assert frames, 'no radio traffic (heartbeats) on /radio/tx'
         assert all(f.source == 5 for f in frames)
         # batched at radio_tx_hz (20 Hz): fewer messages than frames once routing runs

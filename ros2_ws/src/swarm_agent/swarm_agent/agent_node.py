@@ -42,21 +42,22 @@ from sensor_msgs.msg import Imu
 from swarm_agent.agent_factory import make_brain, type_counts_from
 from swarm_agent.brain import BrainConfigError
 from swarm_agent.conversions import (
-    packet_from_msg,
-    packet_to_msg,
+    frames_from_msg,
+    frames_to_msg,
     routes_to_msg,
     snapshot_to_state,
     stamp_seconds,
 )
+from swarm_agent.packet import Packet, PacketError
 from swarm_mission import qos
 from swarm_mission.conversions import goals_from_msg, shape_from_msg
 from swarm_mission.partition import partition, PartitionError
+from swarm_mission.ros_entities import lean_publisher, lean_subscription
 from swarm_mission.shapes import ShapeError
 from swarm_msgs.msg import (
     AgentState,
     FormationShape,
     GoalArray,
-    RadioPacket,
     RadioPacketArray,
     RangeArray,
     RouteTable,
@@ -76,7 +77,8 @@ PARAMETERS = {
     'outer_period_s': (0.5, 'Period of the outer loop (setpoint, forces), thesis 2 Hz'),
     'consensus_period_s': (2.0, 'Period of cost reports and Hungarian assignment rounds'),
     'localization_period_s': (3.0, 'Period of trilateration updates (thesis 4.2: 3 s)'),
-    'state_rate_hz': (2.0, 'Rate of the state and routes introspection topics'),
+    'state_rate_hz': (2.0, 'Rate of the state introspection topic'),
+    'routes_rate_hz': (0.5, 'Rate of the routes topic (DSDV table: about N entries)'),
     'status_log_period_s': (30.0, 'Period of the one-line status log (sim seconds); 0: off'),
     'external_pose': (False, 'Hardware: use the camera pose topic instead of the LPS'),
     'external_pose_std': (0.01, 'Standard deviation of the camera pose in metres'),
@@ -87,15 +89,17 @@ PARAMETERS = {
 }
 
 
-RATES_HZ = ('control_rate_hz', 'keepalive_hz', 'radio_tx_hz', 'state_rate_hz')
+RATES_HZ = ('control_rate_hz', 'keepalive_hz', 'radio_tx_hz', 'state_rate_hz',
+            'routes_rate_hz')
 
 
-def flush_radio(publisher, pending: list[RadioPacket], clock) -> None:
+Frames = list[tuple[float, Packet]]  # (transmission time in seconds, frame)
+
+
+def flush_radio(publisher, pending: Frames, clock) -> None:
     """Publish the frames sent since the last call as one RadioPacketArray."""
     if pending:
-        batch = RadioPacketArray()
-        batch.header.stamp = clock.now().to_msg()
-        batch.packets = list(pending)
+        batch = frames_to_msg(pending, clock.now().to_msg())
         pending.clear()
         publisher.publish(batch)
 
@@ -104,10 +108,14 @@ class AgentNode(Node):
     """ROS wiring of one AgentBrain; see the module docstring."""
 
     def __init__(self, node_name: str = 'agent', namespace: str | None = None,
-                 tx_sink: Callable[[list[RadioPacket]], None] | None = None,
-                 **kwargs) -> None:
+                 tx_sink: Callable[[Frames], None] | None = None,
+                 own_timers: bool = True, **kwargs) -> None:
         """``tx_sink`` takes the radio frames instead of this node's own batching
-        publisher (composed_node: one batch of every agent's frames per period)."""
+        publisher (composed_node: one batch of every agent's frames per period).
+        Without ``own_timers`` the node creates no control and introspection timers:
+        its owner calls ``on_control``, ``publish_state`` and ``publish_routes`` at the
+        node's ``control_rate_hz``, ``state_rate_hz`` and ``routes_rate_hz``
+        (composed_node: one timer of each drives every agent of the process)."""
         super().__init__(node_name, namespace=namespace, **kwargs)
         for name, (default, text) in PARAMETERS.items():
             self.declare_parameter(name, default, ParameterDescriptor(description=text))
@@ -140,7 +148,7 @@ class AgentNode(Node):
         # executor takes (one message per subscription per wait): measured, half of
         # the frames were lost in DDS and the assignment consensus broke (agreement
         # 0.18 on the 50-agent demo).
-        self._tx_pending: list[RadioPacket] = []
+        self._tx_pending: Frames = []
         if tx_sink is None:
             tx = self.create_publisher(RadioPacketArray, '/radio/tx', radio)
             self._tx_sink = self._tx_pending.extend
@@ -148,21 +156,28 @@ class AgentNode(Node):
                               lambda: flush_radio(tx, self._tx_pending, self.get_clock()))
         else:
             self._tx_sink = tx_sink
-        self._cmd_force = self.create_publisher(WrenchStamped, 'cmd_force', sensor)
-        self._cmd_vel = self.create_publisher(Twist, 'cmd_vel', sensor)
-        self._state = self.create_publisher(AgentState, 'state', state)
-        self._routes = self.create_publisher(RouteTable, 'routes', state)
+        # Per-robot topics without rclpy's default QoS event handlers: see
+        # swarm_mission.ros_entities (they made most of a composed process's wait set).
+        self._cmd_force = lean_publisher(self, WrenchStamped, 'cmd_force',
+                                         QoSProfile(**qos.COMMAND))
+        self._cmd_vel = lean_publisher(self, Twist, 'cmd_vel', sensor)
+        self._state = lean_publisher(self, AgentState, 'state', state)
+        self._routes = lean_publisher(self, RouteTable, 'routes', state)
 
-        self.create_subscription(Imu, 'imu', self._on_imu, QoSProfile(**qos.IMU))
-        self.create_subscription(PoseWithCovarianceStamped, 'gps', self._on_gps, sensor)
-        self.create_subscription(RangeArray, 'ranges', self._on_ranges, sensor)
-        self.create_subscription(RadioPacketArray, 'radio/rx', self._on_radio, radio)
-        self.create_subscription(PoseStamped, 'pose', self._on_pose, sensor)
-        self.create_subscription(FormationShape, '/swarm/shape', self._on_shape, latched)
-        self.create_subscription(GoalArray, '/swarm/goals', self._on_goals, latched)
+        lean_subscription(self, Imu, 'imu', self._on_imu, QoSProfile(**qos.IMU))
+        if p['is_beacon']:
+            lean_subscription(self, PoseWithCovarianceStamped, 'gps', self._on_gps, sensor)
+        lean_subscription(self, RangeArray, 'ranges', self._on_ranges, sensor)
+        lean_subscription(self, RadioPacketArray, 'radio/rx', self._on_radio, radio)
+        if p['external_pose']:
+            lean_subscription(self, PoseStamped, 'pose', self._on_pose, sensor)
+        lean_subscription(self, FormationShape, '/swarm/shape', self._on_shape, latched)
+        lean_subscription(self, GoalArray, '/swarm/goals', self._on_goals, latched)
 
-        self.create_timer(1.0 / p['control_rate_hz'], self._on_control)
-        self.create_timer(1.0 / p['state_rate_hz'], self._on_introspection)
+        if own_timers:
+            self.create_timer(1.0 / p['control_rate_hz'], self.on_control)
+            self.create_timer(1.0 / p['state_rate_hz'], self.publish_state)
+            self.create_timer(1.0 / p['routes_rate_hz'], self.publish_routes)
         if p['status_log_period_s'] > 0:
             self.create_timer(p['status_log_period_s'], self._log_status)
         self.get_logger().info(
@@ -190,10 +205,9 @@ class AgentNode(Node):
         self.brain.on_gps(self._now(), np.array([pos.x, pos.y]), std)
 
     def _on_pose(self, msg: PoseStamped) -> None:
-        if self.params['external_pose']:
-            pos = msg.pose.position
-            self.brain.on_gps(self._now(), np.array([pos.x, pos.y]),
-                              self.params['external_pose_std'])
+        pos = msg.pose.position
+        self.brain.on_gps(self._now(), np.array([pos.x, pos.y]),
+                          self.params['external_pose_std'])
 
     def _on_ranges(self, msg: RangeArray) -> None:
         self.brain.on_ranges(self._now(),
@@ -204,8 +218,14 @@ class AgentNode(Node):
         stamp = stamp_seconds(msg.header.stamp)
         if stamp > 0.0:
             self._radio_lag_max = max(self._radio_lag_max, now - stamp)
-        for packet in msg.packets:
-            self.brain.on_packet(now, packet_from_msg(packet))
+        try:
+            frames = frames_from_msg(msg)
+        except PacketError as exc:
+            self.get_logger().error(f'dropped a corrupt radio batch: {exc}',
+                                    throttle_duration_sec=10.0)
+            return
+        for _, packet in frames:
+            self.brain.on_packet(now, packet)
 
     def _on_shape(self, msg: FormationShape) -> None:
         try:
@@ -233,20 +253,20 @@ class AgentNode(Node):
             self.brain.set_goals(goals_from_msg(msg), msg.version)
 
     # -- outputs
-    def _on_control(self) -> None:
+    def on_control(self) -> None:
+        """One inner-loop step: brain, radio frames, cmd_force and cmd_vel."""
         now = self.get_clock().now()
-        out = self.brain.step(now.nanoseconds * 1e-9)
-        stamp = now.to_msg()
+        t = now.nanoseconds * 1e-9
+        out = self.brain.step(t)
         if out.packets:
-            self._tx_sink([packet_to_msg(packet, stamp) for packet in out.packets])
+            self._tx_sink([(t, packet) for packet in out.packets])
         # An unchanged force (a parked robot: zero) is repeated at keepalive_hz only: the
         # simulator holds the last command and paces its clock to the stamps it gets.
         force = (float(out.force[0]), float(out.force[1]))
-        t = now.nanoseconds * 1e-9
         if force != self._last_force or t - self._last_force_t >= self._keepalive_s:
             self._last_force, self._last_force_t = force, t
             wrench = WrenchStamped()
-            wrench.header.stamp = stamp
+            wrench.header.stamp = now.to_msg()
             wrench.header.frame_id = 'map'
             wrench.wrench.force.x, wrench.wrench.force.y = force
             self._cmd_force.publish(wrench)
@@ -258,11 +278,16 @@ class AgentNode(Node):
             twist.linear.x, twist.linear.y = setpoint
             self._cmd_vel.publish(twist)
 
-    def _on_introspection(self) -> None:
-        stamp = self.get_clock().now().to_msg()
-        self._state.publish(snapshot_to_state(self.brain.snapshot(), stamp))
+    def publish_state(self) -> None:
+        """Publish ``state`` (estimate, mode, assignment)."""
+        self._state.publish(snapshot_to_state(self.brain.snapshot(),
+                                              self.get_clock().now().to_msg()))
+
+    def publish_routes(self) -> None:
+        """Publish ``routes`` (the DSDV table)."""
         self._routes.publish(routes_to_msg(self.brain.config.agent_id,
-                                           self.brain.router.routes(), stamp))
+                                           self.brain.router.routes(),
+                                           self.get_clock().now().to_msg()))
 
     def _log_status(self) -> None:
         self.get_logger().info(f'{self.brain.status_line()}; radio lag max '

@@ -5,14 +5,15 @@ Imports message classes only (no rclpy), so it is tested without a ROS graph.
 
 from __future__ import annotations
 
+from array import array
 from collections.abc import Iterable
 
 from builtin_interfaces.msg import Time
 import numpy as np
 
 from swarm_agent.brain import Snapshot
-from swarm_agent.packet import Packet
-from swarm_msgs.msg import AgentState, CostReport, RadioPacket, RouteEntry, RouteTable
+from swarm_agent.packet import pack_frames, Packet, unpack_frames
+from swarm_msgs.msg import AgentState, CostReport, RadioPacketArray, RouteEntry, RouteTable
 
 
 def stamp_seconds(stamp: Time) -> float:
@@ -20,24 +21,20 @@ def stamp_seconds(stamp: Time) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-def packet_to_msg(packet: Packet, stamp: Time | None = None) -> RadioPacket:
-    """Domain packet -> swarm_msgs/RadioPacket."""
-    msg = RadioPacket()
+def frames_to_msg(frames: Iterable[tuple[float, Packet]],
+                  stamp: Time | None = None) -> RadioPacketArray:
+    """``(transmission stamp in seconds, packet)`` pairs -> swarm_msgs/RadioPacketArray."""
+    msg = RadioPacketArray()
     if stamp is not None:
         msg.header.stamp = stamp
-    msg.source = packet.source
-    msg.destination = packet.destination
-    msg.kind = packet.kind
-    msg.sequence = packet.sequence
-    msg.ttl = packet.ttl
-    msg.payload = bytes(packet.payload)
+    # array('B') is what rosidl keeps for uint8[]: assigned without a per-byte check.
+    msg.frames = array('B', pack_frames(frames))
     return msg
 
 
-def packet_from_msg(msg: RadioPacket) -> Packet:
-    """swarm_msgs/RadioPacket -> domain packet (payload as immutable bytes)."""
-    return Packet(source=int(msg.source), destination=int(msg.destination), kind=int(msg.kind),
-                  sequence=int(msg.sequence), ttl=int(msg.ttl), payload=bytes(msg.payload))
+def frames_from_msg(msg: RadioPacketArray) -> list[tuple[float, Packet]]:
+    """swarm_msgs/RadioPacketArray -> ``(stamp, packet)`` pairs; PacketError if corrupt."""
+    return unpack_frames(msg.frames)
 
 
 def snapshot_to_state(snap: Snapshot, stamp: Time | None = None,

@@ -1,12 +1,28 @@
-"""The radio packet as the brain sees it: a pure twin of swarm_msgs/RadioPacket."""
+"""The radio packet as the brain sees it: a pure twin of swarm_msgs/RadioPacket.
+
+``pack_frames``/``unpack_frames`` are the byte layout of swarm_msgs/RadioPacketArray's
+``frames``: every frame back to back, each a 17-byte little-endian header
+``(u16 source, u16 destination, u8 kind, u16 sequence, u8 ttl, f64 stamp, u8 length)``
+then ``length`` payload bytes. Why not an array of RadioPacket messages: building and
+converting one rosidl message (with its Header) per frame was, by py-spy on the 50-agent
+composed scenario, 46 % of the agents' process and 57 % of the simulator's; one
+``uint8[]`` converts in a single copy.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 import enum
+import struct
 
 BROADCAST = 0xFFFF
 MAX_PAYLOAD = 100  # bytes: one XBee frame
+_FRAME = struct.Struct('<HHBHBdB')
+
+
+class PacketError(ValueError):
+    """Packed frames that cannot be decoded."""
 
 
 class Kind(enum.IntEnum):
@@ -34,3 +50,39 @@ class Packet:
     def __post_init__(self) -> None:
         if not isinstance(self.payload, bytes):
             object.__setattr__(self, 'payload', bytes(self.payload))
+
+
+def pack_frames(frames: Iterable[tuple[float, Packet]]) -> bytes:
+    """``(stamp in seconds, packet)`` pairs -> the bytes of RadioPacketArray.frames."""
+    out = bytearray()
+    for stamp, p in frames:
+        if len(p.payload) > 255:
+            raise PacketError(f'payload of {len(p.payload)} bytes from {p.source} does not '
+                              'fit a frame (at most 255; the mesh sends 100)')
+        out += _FRAME.pack(p.source, p.destination, p.kind, p.sequence, p.ttl, stamp,
+                           len(p.payload))
+        out += p.payload
+    return bytes(out)
+
+
+def unpack_frames(data: bytes) -> list[tuple[float, Packet]]:
+    """The bytes of RadioPacketArray.frames -> ``(stamp, packet)`` pairs.
+
+    Raises PacketError naming the offset of a truncated frame.
+    """
+    data = bytes(data)
+    frames = []
+    offset, end = 0, len(data)
+    while offset < end:
+        if end - offset < _FRAME.size:
+            raise PacketError(f'truncated frame header at byte {offset} of {end}')
+        source, destination, kind, sequence, ttl, stamp, length = _FRAME.unpack_from(
+            data, offset)
+        offset += _FRAME.size
+        if end - offset < length:
+            raise PacketError(f'frame at byte {offset - _FRAME.size} announces {length} '
+                              f'payload bytes, {end - offset} left')
+        frames.append((stamp, Packet(source, destination, kind, sequence, ttl,
+                                     data[offset:offset + length])))
+        offset += length
+    return frames

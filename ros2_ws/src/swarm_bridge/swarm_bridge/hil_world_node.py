@@ -34,10 +34,12 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
+from swarm_agent.conversions import frames_from_msg, frames_to_msg
+from swarm_agent.packet import BROADCAST, Packet, PacketError
 from swarm_bridge.emulator import EmulatedRadio, PtyEmulator
 from swarm_bridge.fleet import load_fleet
 from swarm_mission import qos
-from swarm_msgs.msg import RadioPacket, RadioPacketArray
+from swarm_msgs.msg import RadioPacketArray
 
 PARAMETERS = {
     'fleet_file': ('', 'Fleet YAML (default: the package config/fleet.yaml)'),
@@ -49,7 +51,6 @@ PARAMETERS = {
     'pump_period': (0.005, 'Seconds between serial transfers and board time steps'),
     'relay_radio': (True, 'Deliver /radio/tx frames to every agent (XBee mesh in range)'),
 }
-BROADCAST = 0xFFFF
 
 
 def initial_poses(flat: list[float], count: int) -> list[tuple[float, float, float]]:
@@ -115,17 +116,22 @@ class HilWorldNode(Node):
             self._pose_pubs[k].publish(msg)
 
     def _on_tx(self, msg: RadioPacketArray) -> None:
-        for packet in msg.packets:
-            self._relay(packet)
+        try:
+            frames = frames_from_msg(msg)
+        except PacketError as exc:
+            self.get_logger().error(f'dropped a corrupt /radio/tx batch: {exc}',
+                                    throttle_duration_sec=10.0)
+            return
+        for stamp, packet in frames:
+            self._relay(stamp, packet, msg.header.stamp)
 
-    def _relay(self, msg: RadioPacket) -> None:
-        if msg.source not in self.boards:
+    def _relay(self, stamp: float, packet: Packet, batch_stamp) -> None:
+        if packet.source not in self.boards:
             return
         for k, pub in self._rx_pubs.items():
-            if k != msg.source and msg.destination in (BROADCAST, k):
-                batch = RadioPacketArray(packets=[msg])  # a real link delivers frame by frame
-                batch.header.stamp = msg.header.stamp
-                pub.publish(batch)
+            if k != packet.source and packet.destination in (BROADCAST, k):
+                # A real link delivers frame by frame: batches of one.
+                pub.publish(frames_to_msg([(stamp, packet)], batch_stamp))
 
     def close(self) -> None:
         """Remove the pty link and close the pty."""

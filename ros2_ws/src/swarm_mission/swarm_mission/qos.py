@@ -17,6 +17,13 @@ LATCHED = {'history': KEEP_LAST, 'depth': 1, 'reliability': RELIABLE,
 # High-rate sensor data and commands: the newest sample matters, old ones are useless.
 SENSOR = {'history': KEEP_LAST, 'depth': 5, 'reliability': BEST_EFFORT,
           'durability': VOLATILE}
+# Force commands: the latest command is the robot's state, so a simulator that matches
+# an agent late must still get it. With SENSOR (volatile), a first command published
+# before discovery had matched the simulator was lost, and the simulator, holding its
+# clock for the agent's first command, kept the agent's timers from firing again: 15 of
+# 50 composed agents unheard until the 60 s start-up window ran out (measured).
+COMMAND = {'history': KEEP_LAST, 'depth': 1, 'reliability': RELIABLE,
+           'durability': TRANSIENT_LOCAL}
 # Accelerometer samples: each carries the mean acceleration of its interval, so a
 # dropped sample is a lost velocity increment for the Kalman filter: reliable, deep.
 IMU = {'history': KEEP_LAST, 'depth': 50, 'reliability': RELIABLE,

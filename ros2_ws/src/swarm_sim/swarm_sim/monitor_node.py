@@ -22,6 +22,7 @@ from rclpy.qos import QoSProfile
 from swarm_agent.conversions import stamp_seconds
 from swarm_mission import qos
 from swarm_mission.conversions import goals_from_msg, shape_from_msg
+from swarm_mission.ros_entities import lean_subscription
 from swarm_mission.shapes import ShapeError
 from swarm_msgs.msg import AgentState, FormationShape, GoalArray, SwarmTruth
 from swarm_sim.metrics import inside_mask, SETTLE_SPEED
@@ -59,8 +60,8 @@ class MonitorNode(Node):
         self.create_subscription(GoalArray, '/swarm/goals', self._on_goals,
                                  QoSProfile(**qos.LATCHED))
         for agent in self.agent_ids:
-            self.create_subscription(AgentState, f'/agent_{agent}/state', self._on_state,
-                                     state_qos)
+            lean_subscription(self, AgentState, f'/agent_{agent}/state', self._on_state,
+                              state_qos)
 
     def now(self) -> float:
         """Current (sim) time in seconds."""

@@ -55,13 +55,14 @@ from sensor_msgs.msg import Imu
 from std_msgs.msg import Int32MultiArray
 from visualization_msgs.msg import Marker, MarkerArray
 
-from swarm_agent.conversions import packet_from_msg, packet_to_msg, stamp_seconds
+from swarm_agent.conversions import frames_from_msg, frames_to_msg, stamp_seconds
+from swarm_agent.packet import Packet, PacketError
 from swarm_mission import qos
 from swarm_mission.robot_types import load_robot_types
+from swarm_mission.ros_entities import lean_publisher, lean_subscription
 from swarm_mission.shapes import load_shape, ShapeError
 from swarm_msgs.msg import (
     AgentTruth,
-    RadioPacket,
     RadioPacketArray,
     RangeArray,
     RangeMeasurement,
@@ -186,7 +187,7 @@ class SimNode(Node):
         self.step_count = 0
         self.t = 0.0
         self._due = {k: 0.0 for k in ('imu', 'gps', 'range', 'radio', 'truth', 'marker')}
-        self._rx_batches: dict[int, list[RadioPacket]] = {}
+        self._rx_batches: dict[int, list[tuple[float, Packet]]] = {}
         self._record = None
         if p['record_dir']:
             path = pathlib.Path(p['record_dir'])
@@ -194,24 +195,25 @@ class SimNode(Node):
             self._record = open(path / 'truth.csv', 'w', encoding='utf-8')  # noqa: SIM115
             self._record.write('t,id,x,y,vx,vy,alive\n')
 
-        sensor, radio, state, imu = (QoSProfile(**q) for q in (qos.SENSOR, qos.RADIO,
-                                                                 qos.STATE, qos.IMU))
+        sensor, radio, state, imu, command = (
+            QoSProfile(**q) for q in (qos.SENSOR, qos.RADIO, qos.STATE, qos.IMU, qos.COMMAND))
         self.clock_pub = self.create_publisher(Clock, '/clock', 10)
         self.truth_pub = self.create_publisher(SwarmTruth, '/swarm/truth', state)
         self.marker_pub = self.create_publisher(MarkerArray, '/swarm/markers', state)
         self.imu_pubs, self.gps_pubs, self.range_pubs, self.rx_pubs = {}, {}, {}, {}
+        # Per-robot topics without default QoS event handlers (swarm_mission.ros_entities:
+        # with them, 50 robots made a wait set of about 750 entities).
         for r in self.fleet:
             ns = f'/agent_{r.id}'
-            self.imu_pubs[r.id] = self.create_publisher(Imu, f'{ns}/imu', imu)
-            self.range_pubs[r.id] = self.create_publisher(RangeArray, f'{ns}/ranges', sensor)
-            self.rx_pubs[r.id] = self.create_publisher(RadioPacketArray, f'{ns}/radio/rx',
-                                                       radio)
+            self.imu_pubs[r.id] = lean_publisher(self, Imu, f'{ns}/imu', imu)
+            self.range_pubs[r.id] = lean_publisher(self, RangeArray, f'{ns}/ranges', sensor)
+            self.rx_pubs[r.id] = lean_publisher(self, RadioPacketArray, f'{ns}/radio/rx',
+                                                radio)
             if r.is_beacon:
-                self.gps_pubs[r.id] = self.create_publisher(PoseWithCovarianceStamped,
-                                                            f'{ns}/gps', sensor)
-            self.create_subscription(WrenchStamped, f'{ns}/cmd_force',
-                                     lambda m, i=self.index[r.id]: self._on_force(i, m),
-                                     sensor)
+                self.gps_pubs[r.id] = lean_publisher(self, PoseWithCovarianceStamped,
+                                                     f'{ns}/gps', sensor)
+            lean_subscription(self, WrenchStamped, f'{ns}/cmd_force',
+                              lambda m, i=self.index[r.id]: self._on_force(i, m), command)
         self.create_subscription(RadioPacketArray, '/radio/tx', self._on_tx, radio)
         self.create_subscription(Int32MultiArray, '/swarm/kill', self._on_kill, 10)
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -252,9 +254,15 @@ class SimNode(Node):
         self.force_wall[i] = time.monotonic()
 
     def _on_tx(self, msg: RadioPacketArray) -> None:
-        for packet in msg.packets:
+        try:
+            frames = frames_from_msg(msg)
+        except PacketError as exc:
+            self.get_logger().error(f'dropped a corrupt /radio/tx batch: {exc}',
+                                    throttle_duration_sec=10.0)
+            return
+        for _, packet in frames:
             if packet.source in self.index:
-                self.medium.transmit(self.t, packet_from_msg(packet))
+                self.medium.transmit(self.t, packet)
 
     def _on_kill(self, msg: Int32MultiArray) -> None:
         for agent in msg.data:
@@ -355,12 +363,10 @@ class SimNode(Node):
         self.clock_pub.publish(Clock(clock=stamp))
         for receiver, packet in self.medium.deliver(self.t):
             if receiver in self.rx_pubs:
-                self._rx_batches.setdefault(receiver, []).append(packet_to_msg(packet, stamp))
+                self._rx_batches.setdefault(receiver, []).append((self.t, packet))
         if self._due_now('radio', 'radio_rate_hz'):
-            for receiver, packets in self._rx_batches.items():
-                batch = RadioPacketArray(packets=packets)
-                batch.header.stamp = stamp
-                self.rx_pubs[receiver].publish(batch)
+            for receiver, frames in self._rx_batches.items():
+                self.rx_pubs[receiver].publish(frames_to_msg(frames, stamp))
             self._rx_batches = {}
         pos = self.backend.positions()
         if self._due_now('imu', 'imu_rate_hz'):

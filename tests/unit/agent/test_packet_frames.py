@@ -1,0 +1,54 @@
+"""Packed radio frames (swarm_msgs/RadioPacketArray.frames): lossless and strict."""
+
+import pytest
+
+from swarm_agent.packet import (
+    BROADCAST,
+    Kind,
+    MAX_PAYLOAD,
+    pack_frames,
+    Packet,
+    PacketError,
+    unpack_frames,
+)
+
+
+def _frames():
+    return [
+        (12.25, Packet(3, BROADCAST, Kind.HEARTBEAT, 65535, 1, b'\x01\x02\x03')),
+        (12.5, Packet(65534, 7, Kind.DATA, 0, 255, bytes(range(MAX_PAYLOAD)))),
+        (1e6 + 0.125, Packet(0, 1, Kind.FRAGMENT, 42, 8, b'')),
+    ]
+
+
+def test_frames_round_trip_field_by_field():
+    data = pack_frames(_frames())
+    # 17-byte header per frame plus the payloads: nothing else on the wire.
+    assert len(data) == 3 * 17 + 3 + MAX_PAYLOAD
+    assert unpack_frames(data) == _frames()
+    assert unpack_frames(pack_frames([])) == []
+
+
+def test_unpack_accepts_what_rosidl_keeps_for_uint8_arrays():
+    from array import array
+
+    assert unpack_frames(array('B', pack_frames(_frames()))) == _frames()
+
+
+@pytest.mark.parametrize('cut', [1, 16, 17 + 2])
+def test_truncated_batches_are_rejected_with_the_offset(cut):
+    data = pack_frames(_frames()[:1])
+    with pytest.raises(PacketError, match='at byte 0'):
+        unpack_frames(data[:cut])
+
+
+def test_a_frame_with_a_lying_length_is_rejected():
+    data = bytearray(pack_frames(_frames()[:1]))
+    data[16] = 200  # announce 200 payload bytes, 3 follow
+    with pytest.raises(PacketError, match='announces 200 payload bytes, 3 left'):
+        unpack_frames(bytes(data))
+
+
+def test_oversize_payload_cannot_be_packed():
+    with pytest.raises(PacketError, match='256 bytes from 4'):
+        pack_frames([(0.0, Packet(4, 5, Kind.DATA, 1, 1, bytes(256)))])
