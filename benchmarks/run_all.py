@@ -68,7 +68,8 @@ TARGET_SIZE = 1000        # the issue's per-round targets are for 1000 agents
 ROUND_TARGET_S = 1.0      # assignment and cost rows under 1 s per round
 EVAL_TARGET_PER_MIN = 100.0
 PROCESS_MB = 160          # resident memory of one agent_node process (measured: 20 -> 2.9 GB)
-ROS_TARGETS = (('per-process', 50, 1.0), ('composed', 100, 2.0))  # mode, agents, RTF
+# mode, agents, real-time factor (issue 9; 50 composed at 5: issue 7)
+ROS_TARGETS = (('per-process', 50, 1.0), ('composed', 50, 5.0), ('composed', 100, 2.0))
 
 
 class BenchError(ValueError):
@@ -492,6 +493,8 @@ def bench_ros(sizes: Sequence[int], duration_s: float, timeout_s: float,
                 row['error'] = (proc.stderr.strip().splitlines() or ['no metrics.json'])[-1]
             else:
                 row.update({'real_time_factor': m.get('real_time_factor'),
+                            'steady_real_time_factor': m.get('steady_real_time_factor'),
+                            'startup_wall_seconds': m.get('startup_wall_seconds'),
                             'cpu_cores_used': m.get('cpu_cores_used'),
                             'peak_rss_mb': (m.get('peak_rss_bytes') or 0) / 2 ** 20,
                             'wall_seconds': m.get('wall_seconds'),
@@ -540,8 +543,10 @@ def targets(results: dict) -> list[dict]:
     ros = s.get('ros') or []
     for mode, n, rtf in ROS_TARGETS:
         row = next((r for r in ros if r['mode'] == mode and r['agents'] == n), None)
-        add(f'ROS, {n} agents {mode}, real-time factor', row and row.get('real_time_factor'),
-            '>=', rtf, 'x', '' if row else 'run with --ros')
+        add(f'ROS, {n} agents {mode}, real-time factor once started',
+            row and row.get('steady_real_time_factor'), '>=', rtf, 'x',
+            (f'whole run with start-up: {fmt_num(row.get("real_time_factor"))}'
+             if row else 'run with --ros'))
     if results['config']['quick']:
         for t in out:
             t.update(met=None, note='--quick: figures not representative')
@@ -719,16 +724,24 @@ def write_markdown(path: pathlib.Path, results: dict) -> None:
         lines += executor_paragraph(ex)
     lines += ['', '## ROS 2 swarm (scripts/launch_swarm.py)', '']
     if s.get('ros'):
-        lines += ['| Agents | Mode | Real-time factor | CPU cores | Peak memory | Outcome |',
-                  '|---|---|---|---|---|---|']
+        lines += ['| Agents | Mode | Real-time factor once started | Start-up (wall) | '
+                  'Real-time factor, whole run | CPU cores | Peak memory | Outcome |',
+                  '|---|---|---|---|---|---|---|---|']
         for r in s['ros']:
-            lines.append(f'| {r["agents"]} | {r["mode"]} | {fmt_num(r.get("real_time_factor"))}'
+            startup = r.get('startup_wall_seconds')
+            lines.append(f'| {r["agents"]} | {r["mode"]} | '
+                         f'{fmt_num(r.get("steady_real_time_factor"))} | '
+                         f'{fmt_s(startup) if startup is not None else "n/a"} | '
+                         f'{fmt_num(r.get("real_time_factor"))}'
                          f' | {fmt_num(r.get("cpu_cores_used"))} | '
                          f'{fmt_num(r.get("peak_rss_mb"), 0)} MB | '
                          f'{r.get("outcome") or r.get("error", "")} |')
         lines.append('')
         lines.append(f'Each run: {c["ros_duration"]:g} simulated seconds of the thesis '
-                     'scenario (15 % beacons, circle_314, bubble).')
+                     'scenario (15 % beacons, circle_314, bubble). Start-up: wall seconds '
+                     'until the launcher had heard every agent (processes, DDS discovery, '
+                     'first commands; the world waits for them). Real-time factor once '
+                     'started: simulated over wall seconds from then to the end.')
     else:
         lines += ['Not run (slow). Run it with '
                   '`scripts/env.sh python benchmarks/run_all.py --ros --ros-sizes 20,50,100 '

@@ -454,7 +454,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f'launch_swarm.py: {exc}', file=sys.stderr)
         return 2
     from swarm_sim.fleet import save_fleet
+    from swarm_sim.shm import clean_stale_segments
 
+    # Stale Fast DDS shared memory of killed processes hangs new participants forever
+    # (swarm_sim.shm); clear it before starting anything.
+    stale = clean_stale_segments()
+    if stale:
+        print(f'launch_swarm: removed {len(stale)} stale Fast DDS shared-memory files '
+              'of killed processes from /dev/shm', flush=True)
     (out / 'logs').mkdir(parents=True, exist_ok=True)
     fleet_file = out / 'fleet.yaml'
     save_fleet(fleet_file, fleet)
@@ -520,6 +527,8 @@ def main(argv: list[str] | None = None) -> int:
     crashed = None
     removed = 0
     last_print = 0.0
+    started = None  # (wall seconds, sim seconds) when every agent had been heard
+    t = 0.0
     try:
         while True:
             time.sleep(0.5)
@@ -533,6 +542,8 @@ def main(argv: list[str] | None = None) -> int:
                       f'{children.tail(crashed)}', file=sys.stderr)
                 break
             t = status['t']
+            if started is None and status['agents_heard'] >= args.agents:
+                started = (time.monotonic() - wall0, t)
             while removals and removals[0][0] <= t:
                 _, victims = removals.pop(0)
                 kill_pub.publish(Int32MultiArray(data=victims))
@@ -612,8 +623,16 @@ def main(argv: list[str] | None = None) -> int:
         with monitor.lock:
             heard = [a for a, st in zip(monitor.agent_ids, monitor.states) if st is not None]
         goal_versions = monitor.goal_version
+        spin_thread.join(timeout=5.0)
         monitor.destroy_node()
-        rclpy.try_shutdown()
+        # rclpy's shutdown once blocked forever in rcl_logging_fini on a 50-agent run,
+        # with every child already stopped: give it a few seconds, then write the report.
+        closer = threading.Thread(target=rclpy.try_shutdown, daemon=True)
+        closer.start()
+        closer.join(timeout=10.0)
+        if closer.is_alive():
+            print('\nlaunch_swarm: rclpy shutdown hangs; writing the report anyway',
+                  file=sys.stderr, flush=True)
     print()
     from swarm_sim.report import run_report, write_metrics
 
@@ -635,6 +654,13 @@ def main(argv: list[str] | None = None) -> int:
                              'mode': mode, 'outcome': outcome, 'wall_seconds': wall,
                              'cpu_seconds_children': cpu,
                              'cpu_cores_used': cpu / wall if wall > 0 else 0.0,
+                             # Start-up (processes, discovery, first commands) apart from
+                             # the running swarm: the same swarm's real-time factor once
+                             # every agent had been heard.
+                             'startup_wall_seconds': started and started[0],
+                             'steady_real_time_factor':
+                                 (t - started[1]) / (wall - started[0])
+                                 if started and wall - started[0] > 1.0 else None,
                              'peak_rss_bytes': peak_rss, 'consensus_rounds': rounds,
                              'launcher_max_rss_bytes':
                                  resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,

@@ -34,6 +34,16 @@ settings.register_profile('swarm', deadline=None)
 settings.load_profile('swarm')
 
 
+def pytest_sessionstart(session) -> None:
+    """Clear Fast DDS shared memory left by killed processes (swarm_sim.shm): a stale
+    segment hangs every later participant of its domain in rcl_node_init."""
+    try:
+        from swarm_sim.shm import clean_stale_segments
+    except ImportError:
+        return  # the workspace is not built: the ROS tests are skipped anyway
+    clean_stale_segments()
+
+
 def _next_domain_id() -> int:
     """Return a domain id in 1..100 that differs between tests of this session.
 

@@ -27,6 +27,7 @@ central server); the mission node then only announces shapes.
 from __future__ import annotations
 
 from collections.abc import Callable
+import math
 import os
 import sys
 
@@ -150,12 +151,15 @@ class AgentNode(Node):
         # 0.18 on the 50-agent demo).
         self._tx_pending: Frames = []
         if tx_sink is None:
-            tx = self.create_publisher(RadioPacketArray, '/radio/tx', radio)
+            tx = lean_publisher(self, RadioPacketArray, '/radio/tx', radio)
             self._tx_sink = self._tx_pending.extend
-            self.create_timer(1.0 / p['radio_tx_hz'],
-                              lambda: flush_radio(tx, self._tx_pending, self.get_clock()))
+            # Flushed by the control loop (one timer less to wake this process for).
+            self._flush_tx = lambda: flush_radio(tx, self._tx_pending, self.get_clock())
         else:
             self._tx_sink = tx_sink
+            self._flush_tx = None
+        self._tx_period = 1.0 / p['radio_tx_hz']
+        self._tx_due = -math.inf
         # Per-robot topics without rclpy's default QoS event handlers: see
         # swarm_mission.ros_entities (they made most of a composed process's wait set).
         self._cmd_force = lean_publisher(self, WrenchStamped, 'cmd_force',
@@ -260,6 +264,9 @@ class AgentNode(Node):
         out = self.brain.step(t)
         if out.packets:
             self._tx_sink([(t, packet) for packet in out.packets])
+        if self._flush_tx is not None and t >= self._tx_due:
+            self._tx_due = t + self._tx_period
+            self._flush_tx()
         # An unchanged force (a parked robot: zero) is repeated at keepalive_hz only: the
         # simulator holds the last command and paces its clock to the stamps it gets.
         force = (float(out.force[0]), float(out.force[1]))

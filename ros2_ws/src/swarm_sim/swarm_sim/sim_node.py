@@ -103,6 +103,10 @@ PARAMETERS = {
 }
 
 
+# Wall seconds between repeats of an unchanged /clock while the world waits for agents.
+HELD_CLOCK_PERIOD_S = 0.25
+
+
 class PointMassBackend:
     """The headless point-mass model behind the Backend interface."""
 
@@ -182,6 +186,7 @@ class SimNode(Node):
         self.force_stamp = np.full(self.n, -math.inf)   # agent clock of its last command
         self.force_wall = np.full(self.n, -math.inf)    # wall time it arrived
         self._started_wall = time.monotonic()
+        self._clock_wall = -math.inf  # wall time of the last /clock message
         self._warned: set[int] = set()
         self.dt = 1.0 / p['physics_rate_hz']
         self.step_count = 0
@@ -315,10 +320,11 @@ class SimNode(Node):
             self._physics_step()
         if steps:
             self._publish_outputs()
-        else:
-            # Held for a slow agent: keep the clock ticking at the same time, so that
-            # late-starting nodes learn it and fire their timers.
-            self.clock_pub.publish(Clock(clock=self._stamp()))
+        elif time.monotonic() - self._clock_wall >= HELD_CLOCK_PERIOD_S:
+            # Held for a slow agent: repeat the unchanged time now and then, so that
+            # late-starting nodes learn it and fire their timers. Not at every tick:
+            # each /clock message wakes every agent process (50 of them per tick).
+            self._publish_clock(self._stamp())
 
     def _steps_agents_allow(self) -> int:
         """Physics steps possible without running ahead of the slowest living agent."""
@@ -358,9 +364,13 @@ class SimNode(Node):
             return True
         return False
 
+    def _publish_clock(self, stamp) -> None:
+        self.clock_pub.publish(Clock(clock=stamp))
+        self._clock_wall = time.monotonic()
+
     def _publish_outputs(self) -> None:
         stamp = self._stamp()
-        self.clock_pub.publish(Clock(clock=stamp))
+        self._publish_clock(stamp)
         for receiver, packet in self.medium.deliver(self.t):
             if receiver in self.rx_pubs:
                 self._rx_batches.setdefault(receiver, []).append((self.t, packet))
