@@ -52,3 +52,25 @@ def test_a_frame_with_a_lying_length_is_rejected():
 def test_oversize_payload_cannot_be_packed():
     with pytest.raises(PacketError, match='256 bytes from 4'):
         pack_frames([(0.0, Packet(4, 5, Kind.DATA, 1, 1, bytes(256)))])
+
+
+def test_a_corrupt_batch_is_dropped_with_one_line_naming_the_topic():
+    pytest.importorskip('swarm_msgs')
+    from swarm_agent.conversions import frames_from_msg, frames_or_log, frames_to_msg
+
+    class Logger:
+        def __init__(self):
+            self.lines = []
+
+        def error(self, text, **_):
+            self.lines.append(text)
+
+    good = frames_to_msg(_frames())
+    assert frames_from_msg(good) == _frames()
+    bad = frames_to_msg(_frames())
+    bad.frames = bad.frames[:19]  # the first frame's header, then 2 of its 3 payload bytes
+    logger = Logger()
+    assert frames_or_log(bad, logger, '/radio/tx') == []
+    assert len(logger.lines) == 1 and '/radio/tx' in logger.lines[0]
+    assert 'announces 3 payload bytes, 2 left' in logger.lines[0]
+    assert frames_or_log(good, logger, '/radio/tx') == _frames()

@@ -43,13 +43,13 @@ from sensor_msgs.msg import Imu
 from swarm_agent.agent_factory import make_brain, type_counts_from
 from swarm_agent.brain import BrainConfigError
 from swarm_agent.conversions import (
-    frames_from_msg,
+    frames_or_log,
     frames_to_msg,
     routes_to_msg,
     snapshot_to_state,
     stamp_seconds,
 )
-from swarm_agent.packet import Packet, PacketError
+from swarm_agent.packet import Packet
 from swarm_mission import qos
 from swarm_mission.conversions import goals_from_msg, shape_from_msg
 from swarm_mission.partition import partition, PartitionError
@@ -222,13 +222,7 @@ class AgentNode(Node):
         stamp = stamp_seconds(msg.header.stamp)
         if stamp > 0.0:
             self._radio_lag_max = max(self._radio_lag_max, now - stamp)
-        try:
-            frames = frames_from_msg(msg)
-        except PacketError as exc:
-            self.get_logger().error(f'dropped a corrupt radio batch: {exc}',
-                                    throttle_duration_sec=10.0)
-            return
-        for _, packet in frames:
+        for _, packet in frames_or_log(msg, self.get_logger(), 'radio/rx'):
             self.brain.on_packet(now, packet)
 
     def _on_shape(self, msg: FormationShape) -> None:

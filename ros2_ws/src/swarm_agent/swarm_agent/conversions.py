@@ -12,7 +12,7 @@ from builtin_interfaces.msg import Time
 import numpy as np
 
 from swarm_agent.brain import Snapshot
-from swarm_agent.packet import pack_frames, Packet, unpack_frames
+from swarm_agent.packet import pack_frames, Packet, PacketError, unpack_frames
 from swarm_msgs.msg import AgentState, CostReport, RadioPacketArray, RouteEntry, RouteTable
 
 
@@ -35,6 +35,17 @@ def frames_to_msg(frames: Iterable[tuple[float, Packet]],
 def frames_from_msg(msg: RadioPacketArray) -> list[tuple[float, Packet]]:
     """swarm_msgs/RadioPacketArray -> ``(stamp, packet)`` pairs; PacketError if corrupt."""
     return unpack_frames(msg.frames)
+
+
+def frames_or_log(msg: RadioPacketArray, logger, topic: str) -> list[tuple[float, Packet]]:
+    """``frames_from_msg``, or no frames and one throttled error line naming ``topic``
+    (a corrupt batch is dropped; the node keeps running). ``logger``: an rclpy logger."""
+    try:
+        return frames_from_msg(msg)
+    except PacketError as exc:
+        logger.error(f'dropped a corrupt radio batch on {topic}: {exc}',
+                     throttle_duration_sec=10.0)
+        return []
 
 
 def snapshot_to_state(snap: Snapshot, stamp: Time | None = None,

@@ -34,8 +34,8 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
-from swarm_agent.conversions import frames_from_msg, frames_to_msg
-from swarm_agent.packet import BROADCAST, Packet, PacketError
+from swarm_agent.conversions import frames_or_log, frames_to_msg
+from swarm_agent.packet import BROADCAST, Packet
 from swarm_bridge.emulator import EmulatedRadio, PtyEmulator
 from swarm_bridge.fleet import load_fleet
 from swarm_mission import qos
@@ -116,13 +116,7 @@ class HilWorldNode(Node):
             self._pose_pubs[k].publish(msg)
 
     def _on_tx(self, msg: RadioPacketArray) -> None:
-        try:
-            frames = frames_from_msg(msg)
-        except PacketError as exc:
-            self.get_logger().error(f'dropped a corrupt /radio/tx batch: {exc}',
-                                    throttle_duration_sec=10.0)
-            return
-        for stamp, packet in frames:
+        for stamp, packet in frames_or_log(msg, self.get_logger(), '/radio/tx'):
             self._relay(stamp, packet, msg.header.stamp)
 
     def _relay(self, stamp: float, packet: Packet, batch_stamp) -> None:

@@ -55,8 +55,8 @@ from sensor_msgs.msg import Imu
 from std_msgs.msg import Int32MultiArray
 from visualization_msgs.msg import Marker, MarkerArray
 
-from swarm_agent.conversions import frames_from_msg, frames_to_msg, stamp_seconds
-from swarm_agent.packet import Packet, PacketError
+from swarm_agent.conversions import frames_or_log, frames_to_msg, stamp_seconds
+from swarm_agent.packet import Packet
 from swarm_mission import qos
 from swarm_mission.robot_types import load_robot_types
 from swarm_mission.ros_entities import lean_publisher, lean_subscription
@@ -259,13 +259,7 @@ class SimNode(Node):
         self.force_wall[i] = time.monotonic()
 
     def _on_tx(self, msg: RadioPacketArray) -> None:
-        try:
-            frames = frames_from_msg(msg)
-        except PacketError as exc:
-            self.get_logger().error(f'dropped a corrupt /radio/tx batch: {exc}',
-                                    throttle_duration_sec=10.0)
-            return
-        for _, packet in frames:
+        for _, packet in frames_or_log(msg, self.get_logger(), '/radio/tx'):
             if packet.source in self.index:
                 self.medium.transmit(self.t, packet)
 
