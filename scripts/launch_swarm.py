@@ -389,9 +389,9 @@ class RouteRecorder:
     def __init__(self, node, ids: list[int]) -> None:
         from rclpy.qos import QoSProfile
 
+        from swarm_agent.agent_node import lean_subscription
         from swarm_agent.conversions import stamp_seconds
         from swarm_mission import qos
-        from swarm_mission.ros_entities import lean_subscription
         from swarm_msgs.msg import RouteTable
 
         self._seconds = stamp_seconds   # imported here: the launcher loads ROS lazily

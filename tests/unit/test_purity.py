@@ -10,11 +10,9 @@ SRC = ROOT / 'ros2_ws' / 'src'
 
 
 def _is_allowed(path: pathlib.Path) -> bool:
-    """Nodes, their shared ROS helpers (ros_*.py), launch files and tests may import
-    rclpy; nothing else may."""
+    """Nodes, launch files and tests may import rclpy; nothing else may."""
     return (
         path.name.endswith('_node.py')
-        or path.name.startswith('ros_')
         or path.name.endswith('.launch.py')
         or 'launch' in path.parts
         or 'test' in path.parts
@@ -54,5 +52,3 @@ def test_detector_catches_an_rclpy_import(tmp_path):
     assert _imports_rclpy(bad) == [2]
     assert not _is_allowed(bad)
     assert _is_allowed(tmp_path / 'agent_node.py')
-    assert _is_allowed(tmp_path / 'ros_entities.py')
-    assert not _is_allowed(tmp_path / 'heros_estimator.py')

@@ -17,7 +17,7 @@ process in the executor, under 10 % in the agents' callbacks):
 - One timer steps every agent's inner loop (``AgentNode.on_control``), one publishes
   every agent's state and one every agent's routes, instead of three timers per agent.
 - The agents have no parameter or type-description services (seven services each) and
-  their per-robot topics have no default QoS event handlers (swarm_mission.ros_entities).
+  their per-robot topics have no default QoS event handlers (``agent_node.lean_publisher``).
   Their parameters are the container's (listed by ``ros2 param dump
   /agents_container``) plus the fleet file's.
 

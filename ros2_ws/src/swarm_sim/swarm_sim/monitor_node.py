@@ -19,10 +19,10 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
+from swarm_agent.agent_node import lean_subscription
 from swarm_agent.conversions import stamp_seconds
 from swarm_mission import qos
 from swarm_mission.conversions import goals_from_msg, shape_from_msg
-from swarm_mission.ros_entities import lean_subscription
 from swarm_mission.shapes import ShapeError
 from swarm_msgs.msg import AgentState, FormationShape, GoalArray, SwarmTruth
 from swarm_sim.metrics import inside_mask, SETTLE_SPEED

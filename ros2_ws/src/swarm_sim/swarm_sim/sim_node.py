@@ -55,11 +55,11 @@ from sensor_msgs.msg import Imu
 from std_msgs.msg import Int32MultiArray
 from visualization_msgs.msg import Marker, MarkerArray
 
+from swarm_agent.agent_node import lean_publisher, lean_subscription
 from swarm_agent.conversions import frames_or_log, frames_to_msg, stamp_seconds
 from swarm_agent.packet import Packet
 from swarm_mission import qos
 from swarm_mission.robot_types import load_robot_types
-from swarm_mission.ros_entities import lean_publisher, lean_subscription
 from swarm_mission.shapes import load_shape, ShapeError
 from swarm_msgs.msg import (
     AgentTruth,
@@ -206,8 +206,8 @@ class SimNode(Node):
         self.truth_pub = self.create_publisher(SwarmTruth, '/swarm/truth', state)
         self.marker_pub = self.create_publisher(MarkerArray, '/swarm/markers', state)
         self.imu_pubs, self.gps_pubs, self.range_pubs, self.rx_pubs = {}, {}, {}, {}
-        # Per-robot topics without default QoS event handlers (swarm_mission.ros_entities:
-        # with them, 50 robots made a wait set of about 750 entities).
+        # Per-robot topics without default QoS event handlers (agent_node.lean_publisher):
+        # with them, 50 robots made a wait set of about 750 entities.
         for r in self.fleet:
             ns = f'/agent_{r.id}'
             self.imu_pubs[r.id] = lean_publisher(self, Imu, f'{ns}/imu', imu)
