@@ -199,6 +199,11 @@ class Monitor:
     def close(self) -> None:
         import rclpy
         self.executor.shutdown()
+        # The spin thread may still be inside its last wait: let it leave before the
+        # node and context go, as launch_swarm does (a context torn down under it
+        # aborted the process at exit once: "terminate called without an active
+        # exception", return code -6, after a settled run).
+        self.thread.join(timeout=5.0)
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
 
