@@ -21,6 +21,11 @@ are medians of --repeats runs, per swarm size of --sizes:
 - medium:        one step of the radio medium (``RadioMedium.update_positions``: links
                  with line of sight; then one 24-byte broadcast per agent transmitted and
                  delivered);
+- world:         the bare pybullet world of swarm_sim (scripts/sim_benchmark.py in a
+                 child process: --world-sizes robots of the three types on rough terrain
+                 in the +/-50 m workspace, DIRECT mode, its default physics rate, the
+                 state read after every step): real-time factor (issue 6's target: 20x
+                 with 50 robots);
 - evaluator:     whole headless trials of the thesis scenario (scripts/evaluate.py
                  ``run_trial``: 50 agents, 8 beacons, circle_314, bubble) bounded to
                  --eval-duration simulated seconds: wall and CPU seconds per trial, sim
@@ -63,10 +68,11 @@ import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 SECTIONS = ('dsdv', 'trilateration', 'partition', 'cost_rows', 'assignment', 'medium',
-            'evaluator', 'executor')
+            'world', 'evaluator', 'executor')
 TARGET_SIZE = 1000        # the issue's per-round targets are for 1000 agents
 ROUND_TARGET_S = 1.0      # assignment and cost rows under 1 s per round
 EVAL_TARGET_PER_MIN = 100.0
+WORLD_TARGET = (50, 20.0)  # issue 6: the bare pybullet world, 50 robots, 20x real time
 PROCESS_MB = 160          # resident memory of one agent_node process (measured: 20 -> 2.9 GB)
 # mode, agents, real-time factor (issue 9; 50 composed at 5: issue 7)
 ROS_TARGETS = (('per-process', 50, 1.0), ('composed', 50, 5.0), ('composed', 100, 2.0))
@@ -347,6 +353,35 @@ def bench_medium(sizes: Sequence[int], repeats: int, seed: int,
     return rows
 
 
+def bench_world(sizes: Sequence[int], repeats: int, seconds: float, seed: int) -> list[dict]:
+    """scripts/sim_benchmark.py per size, each run in a fresh process (pybullet state)."""
+    rows = []
+    for n in sizes:
+        runs = []
+        for k in range(repeats):
+            proc = run_child([sys.executable, str(ROOT / 'scripts' / 'sim_benchmark.py'),
+                              '--robots', str(n), '--seconds', str(seconds), '--terrain',
+                              'rough', '--seed', str(seed + k)],
+                             timeout_s=max(120.0, 20.0 * seconds * n / 50.0), env=ros_env())
+            lines = [json.loads(line) for line in proc.stdout.splitlines()
+                     if line.startswith('{')]
+            if proc.returncode != 0 or not lines:
+                raise RuntimeError('sim_benchmark.py failed: '
+                                   + (proc.stderr.strip().splitlines() or ['no output'])[-1])
+            runs.append(lines[-1])
+        row = {'robots': n, 'agents': n, 'seconds': seconds,
+               'physics_hz': runs[0]['physics_hz'], 'terrain': 'rough',
+               **{key: median([r[key] for r in runs]) for key in (
+                   'real_time_factor', 'cpu_real_time_factor', 'ms_per_step',
+                   'physics_share', 'max_tilt_deg', 'min_ground_clearance_m')},
+               'runs': runs}
+        rows.append(row)
+        log(f'  world {n:5d} robots: {row["real_time_factor"]:.1f}x real time at '
+            f'{row["physics_hz"]:g} Hz ({row["ms_per_step"]:.2f} ms a step, physics '
+            f'{100 * row["physics_share"]:.0f} %)')
+    return rows
+
+
 def bench_evaluator(duration_s: float, repeats: int, agents: int, beacons: int,
                     shape: str, seed: int) -> dict:
     if str(ROOT / 'scripts') not in sys.path:
@@ -534,6 +569,10 @@ def targets(results: dict) -> list[dict]:
     add(f'cost rows, {TARGET_SIZE} agents, every agent in one process per round',
         big and big['all_rows_s'], '<', ROUND_TARGET_S, 's',
         'what the headless evaluator pays; not a stated target of each agent')
+    world = at_size(s.get('world', []), WORLD_TARGET[0])
+    add(f'pybullet world (issue 6), {WORLD_TARGET[0]} robots on rough terrain, real-time '
+        'factor', world and world['real_time_factor'], '>=', WORLD_TARGET[1], 'x',
+        f'at {world["physics_hz"]:g} Hz physics, state read every step' if world else '')
     ev = s.get('evaluator')
     value = ev['trials_per_min_all_cores'] if ev and ev['agents'] == 50 else None
     add('evaluator, 50-agent thesis scenario, trials per minute (all cores)', value, '>=',
@@ -701,6 +740,24 @@ def write_markdown(path: pathlib.Path, results: dict) -> None:
               '100 m x 100 m, 314 m^2 formation, 20:20:10 types) at constant density.', '',
               '## Scaling per algorithm', '']
     lines += scaling_table(results)
+    if s.get('world'):
+        lines += ['', '## pybullet world (scripts/sim_benchmark.py)', '',
+                  '| Robots | Physics rate | Real-time factor | CPU real-time factor | '
+                  'Wall per step | Physics share | Max tilt | Min ground clearance |',
+                  '|---|---|---|---|---|---|---|---|']
+        for r in s['world']:
+            lines.append(f'| {r["robots"]} | {r["physics_hz"]:g} Hz | '
+                         f'{fmt_num(r["real_time_factor"], 1)} | '
+                         f'{fmt_num(r["cpu_real_time_factor"], 1)} | '
+                         f'{fmt_s(r["ms_per_step"] / 1e3)} | '
+                         f'{100 * r["physics_share"]:.0f} % | {r["max_tilt_deg"]:.1f} deg | '
+                         f'{100 * r["min_ground_clearance_m"]:.1f} cm |')
+        lines += ['', f'Each run: {s["world"][0]["seconds"]:g} simulated seconds on rough '
+                  'terrain in the +/-50 m workspace (DIRECT mode, the three types 20:20:10), '
+                  'every robot driven towards a new random velocity up to 0.5 m/s every 2 s '
+                  'by a 50 Hz controller, the state (poses and velocities) read after every '
+                  "physics step, the worst case. Physics share: the time inside Bullet's "
+                  'step; the rest is the Python side (forces, state reads).']
     if 'evaluator' in s:
         ev = s['evaluator']
         lines += ['', '## Headless evaluator', '',
@@ -747,8 +804,8 @@ def write_markdown(path: pathlib.Path, results: dict) -> None:
                   '`scripts/env.sh python benchmarks/run_all.py --ros --ros-sizes 20,50,100 '
                   '--ros-duration 30` (per-process and composed at each size, a few minutes '
                   'each on 2 cores).']
-    lines += ['', '## Targets (issue 9)', '', '| Target | Measured | Wanted | Result | Note |',
-              '|---|---|---|---|---|']
+    lines += ['', '## Targets (issues 6 and 9)', '',
+              '| Target | Measured | Wanted | Result | Note |', '|---|---|---|---|---|']
     for t in results['targets']:
         if t['unit'] == 's':
             value = fmt_s(t['value'])
@@ -791,6 +848,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help='random graphs per size for DSDV (simulated-time figures)')
     p.add_argument('--dsdv-limit', type=float, default=120.0,
                    help='give up on DSDV convergence after this many simulated seconds')
+    p.add_argument('--world-sizes', default=None,
+                   help='robots of the pybullet world section (default 50,200, --quick 10)')
+    p.add_argument('--world-seconds', type=float, default=None,
+                   help='simulated seconds per world run (default 20, --quick 1)')
     p.add_argument('--eval-duration', type=float, default=None,
                    help='simulated seconds per evaluator trial (default 60, --quick 3)')
     p.add_argument('--eval-agents', type=int, default=50)
@@ -825,6 +886,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     args.argv = list(sys.argv[1:] if argv is None else argv)
     if args.eval_duration is None:
         args.eval_duration = 3.0 if args.quick else 60.0
+    if args.world_sizes is None:
+        args.world_sizes = '10' if args.quick else '50,200'
+    if args.world_seconds is None:
+        args.world_seconds = 1.0 if args.quick else 20.0
     if args.executor_nodes is None:
         args.executor_nodes = 5 if args.quick else 50
     if args.executor_seconds is None:
@@ -849,8 +914,9 @@ def validate(args: argparse.Namespace) -> tuple[list[int], list[int], list[str]]
     for name in ('repeats', 'dsdv_repeats', 'executor_nodes', 'eval_agents'):
         if getattr(args, name) < 1:
             raise BenchError(f'--{name.replace("_", "-")} must be at least 1')
-    for name in ('eval_duration', 'executor_seconds', 'ros_duration', 'dsdv_limit',
-                 'ros_timeout'):
+    args.world_size_list = sizes_arg(args.world_sizes, '--world-sizes', 1)
+    for name in ('eval_duration', 'world_seconds', 'executor_seconds', 'ros_duration',
+                 'dsdv_limit', 'ros_timeout'):
         if not getattr(args, name) > 0:
             raise BenchError(f'--{name.replace("_", "-")} must be positive')
     if not 3 <= args.eval_beacons <= args.eval_agents:
@@ -942,6 +1008,8 @@ def main(argv: list[str] | None = None) -> int:
             sizes, args.repeats, args.seed)))),
         ('medium', lambda: s.__setitem__('medium', bench_medium(
             sizes, args.repeats, args.seed))),
+        ('world', lambda: s.__setitem__('world', bench_world(
+            args.world_size_list, args.repeats, args.world_seconds, args.seed))),
         ('evaluator', lambda: s.__setitem__('evaluator', bench_evaluator(
             args.eval_duration, args.repeats, args.eval_agents, args.eval_beacons,
             'circle_314', args.seed))),

@@ -13,7 +13,12 @@ time, once the swarm has stayed settled (eq. 4.1) for ``--settle-hold`` seconds 
 the last shape change, on Ctrl-C, or when a node crashes (its log tail is printed).
 Every child is stopped, no orphans are left.
 
-Faults at given sim times: ``--remove T:IDS`` removes robots (``/swarm/kill``);
+Faults at given sim times: ``--remove T:IDS`` removes robots (``/swarm/kill``),
+``--radio-off T:IDS`` and ``--radio-on T:IDS`` silence and restore their radios,
+``--move-obstacle T:K:DX,DY`` moves obstacle K of the shape (``/swarm/move_obstacle``);
+each is sent at the first 0.5 s (wall) poll after sim time T, so up to half a wall
+second times the real-time factor late; ``metrics.json`` lists each under ``faults``
+with the sim time it was sent (``sent_at``).
 ``--set-sim T:NAME=VALUE`` sets a run-time parameter of the sim node with a parameter
 client (``loss``, ``radio_range_m``, ``radio_wall_speed_mps``: packet loss, a range cut,
 a radio-opaque wall sweeping the workspace); ``--min-duration`` keeps the run going
@@ -76,6 +81,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help='target real-time factor of the sim (0: as fast as possible)')
     p.add_argument('--remove', action='append', default=[],
                    help='remove robots mid-run, e.g. --remove 60:3,17 (sim time:ids)')
+    p.add_argument('--radio-off', action='append', default=[], metavar='T:IDS',
+                   help="kill robots' radios mid-run, e.g. --radio-off 60:3,17 (repeatable)")
+    p.add_argument('--radio-on', action='append', default=[], metavar='T:IDS',
+                   help='bring radios back, e.g. --radio-on 90:3 (repeatable)')
+    p.add_argument('--move-obstacle', action='append', default=[], metavar='T:K:DX,DY',
+                   help='move obstacle K of the shape by (DX, DY) m at sim time T, e.g. '
+                        '--move-obstacle 60:0:5,0 (repeatable)')
     p.add_argument('--set-sim', action='append', default=[], metavar='T:NAME=VALUE',
                    help='set a run-time parameter of the sim node at sim time T, e.g. '
                         '--set-sim 60:loss=0.2, 90:radio_range_m=5 or '
@@ -120,6 +132,56 @@ def parse_agent_ids(spec: str, n_agents: int) -> list[int]:
                               f'with --agents {n_agents}')
         ids.update(range(first, last + 1))
     return sorted(ids)
+
+
+def _fault_time(flag: str, spec: str, when: str, example: str) -> float:
+    try:
+        t = float(when)
+    except ValueError:
+        raise LaunchError(f'{flag} {spec!r}: {when.strip()!r} is not a sim time in seconds; '
+                          f'write e.g. {flag} {example}') from None
+    if not (np.isfinite(t) and t >= 0.0):
+        raise LaunchError(f'{flag} {spec!r}: the time must be a sim time >= 0 s')
+    return t
+
+
+def parse_robot_fault(flag: str, spec: str, n_agents: int) -> tuple[float, list[int]]:
+    """``--remove``/``--radio-off``/``--radio-on`` ``T:IDS`` as (time, ids), checked."""
+    when, sep, ids = spec.partition(':')
+    if not sep or not ids.strip():
+        raise LaunchError(f'{flag} {spec!r}: write TIME:IDS, e.g. {flag} 60:3,17')
+    t = _fault_time(flag, spec, when, '60:3,17')
+    try:
+        robots = [int(i) for i in ids.split(',')]
+    except ValueError:
+        raise LaunchError(f'{flag} {spec!r}: {ids.strip()!r} is not a list of agent ids; '
+                          f'write e.g. {flag} 60:3,17') from None
+    bad = [i for i in robots if not 0 <= i < n_agents]
+    if bad:
+        raise LaunchError(f'{flag} {spec!r}: agent ids run 0..{n_agents - 1} with --agents '
+                          f'{n_agents}, not {bad}')
+    return t, robots
+
+
+def parse_move_obstacle(spec: str, n_obstacles: int) -> tuple[float, list[float]]:
+    """``--move-obstacle T:K:DX,DY`` as (time, [k, dx, dy]), checked against the shape."""
+    parts = spec.split(':')
+    if len(parts) != 3:
+        raise LaunchError(f'--move-obstacle {spec!r}: write TIME:INDEX:DX,DY, e.g. '
+                          '--move-obstacle 60:0:5,0')
+    t = _fault_time('--move-obstacle', spec, parts[0], '60:0:5,0')
+    try:
+        k = int(parts[1])
+        dx, dy = (float(v) for v in parts[2].split(','))
+    except ValueError:
+        raise LaunchError(f'--move-obstacle {spec!r}: write an integer obstacle index and two '
+                          'offsets in metres, e.g. --move-obstacle 60:0:5,0') from None
+    if not 0 <= k < n_obstacles:
+        raise LaunchError(f'--move-obstacle {spec!r}: the shape has {n_obstacles} obstacles'
+                          + (f' (indices 0..{n_obstacles - 1})' if n_obstacles else ''))
+    if not (np.isfinite(dx) and np.isfinite(dy)):
+        raise LaunchError(f'--move-obstacle {spec!r}: offsets must be finite metres')
+    return t, [float(k), dx, dy]
 
 
 def parse_set_sim(spec: str) -> tuple[float, str, float]:
@@ -179,15 +241,28 @@ def validate(args: argparse.Namespace):
     if args.agents_only and not args.local_ids:
         raise LaunchError('--agents-only with --local-agents none starts nothing; '
                           'name the agents of this host, e.g. --local-agents 4-7')
-    if args.agents_only and (args.remove or args.set_sim):
-        flag = '--remove' if args.remove else '--set-sim'
+    faults = {'--remove': args.remove, '--radio-off': args.radio_off,
+              '--radio-on': args.radio_on, '--move-obstacle': args.move_obstacle,
+              '--set-sim': args.set_sim}
+    if args.agents_only and any(faults.values()):
+        flag = next(f for f, v in faults.items() if v)
         raise LaunchError(f'{flag} acts from the host that runs the sim; '
                           'drop it from the --agents-only command')
     args.sim_settings = sorted(parse_set_sim(s) for s in args.set_sim)
+    args.robot_faults = sorted(
+        (*parse_robot_fault(flag, spec, args.agents), topic)
+        for flag, topic, specs in (('--remove', '/swarm/kill', args.remove),
+                                   ('--radio-off', '/swarm/radio_off', args.radio_off),
+                                   ('--radio-on', '/swarm/radio_on', args.radio_on))
+        for spec in specs)
     if args.sim_settings and args.sim_settings[-1][0] >= args.duration:
         raise LaunchError(f'--set-sim at {args.sim_settings[-1][0]:g} s comes after the end '
                           f'of the run (--duration {args.duration:g}); set it earlier or '
                           'raise --duration')
+    late = [t for t, *_ in args.robot_faults if t >= args.duration]
+    if late:
+        raise LaunchError(f'a fault at {late[0]:g} s comes after the end of the run '
+                          f'(--duration {args.duration:g}); set it earlier or raise --duration')
     if not 0.0 <= args.min_duration <= args.duration:
         raise LaunchError(f'--min-duration {args.min_duration:g} must be within 0 and '
                           f'--duration {args.duration:g}')
@@ -201,6 +276,8 @@ def validate(args: argparse.Namespace):
             raise LaunchError(f'--types sums to {sum(counts.values())}, --agents is '
                               f'{args.agents}')
         shape = load_shape(args.shape)
+        args.obstacle_moves = sorted(parse_move_obstacle(spec, len(shape.obstacles))
+                                     for spec in args.move_obstacle)
         types = load_robot_types()
         radii = {t: r.coverage_radius for t, r in types.items()}
         if args.method != 'forces':
@@ -216,6 +293,10 @@ def validate(args: argparse.Namespace):
                              half_size=args.half_size, obstacles=list(shape.obstacles))
     except (ShapeError, PartitionError, RobotTypeError, ValueError) as exc:
         raise LaunchError(str(exc)) from exc
+    if args.obstacle_moves and args.obstacle_moves[-1][0] >= args.duration:
+        raise LaunchError(f'--move-obstacle at {args.obstacle_moves[-1][0]:g} s comes after '
+                          f'the end of the run (--duration {args.duration:g}); set it '
+                          'earlier or raise --duration')
     return shape, counts, beacons, fleet
 
 
@@ -473,19 +554,21 @@ def main(argv: list[str] | None = None) -> int:
     if args.agents_only:
         return run_agents_only(children, args, fleet, fleet_file, counts, domain)
     ids = [r.id for r in sorted(fleet, key=lambda r: r.id)]
-    removals = sorted((float(s.split(':')[0]), [int(i) for i in s.split(':')[1].split(',')])
-                      for s in args.remove)
+    robot_faults = list(args.robot_faults)        # (t, ids, topic), by time
+    obstacle_moves = list(args.obstacle_moves)    # (t, [k, dx, dy]), by time
 
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
-    from std_msgs.msg import Int32MultiArray
+    from std_msgs.msg import Float64MultiArray, Int32MultiArray
 
     from swarm_sim.monitor_node import MonitorNode
 
     rclpy.init()
     monitor = MonitorNode(ids, parameter_overrides=[
         rclpy.parameter.Parameter('use_sim_time', value=True)])
-    kill_pub = monitor.create_publisher(Int32MultiArray, '/swarm/kill', 10)
+    fault_pubs = {topic: monitor.create_publisher(Int32MultiArray, topic, 10)
+                  for topic in ('/swarm/kill', '/swarm/radio_off', '/swarm/radio_on')}
+    move_pub = monitor.create_publisher(Float64MultiArray, '/swarm/move_obstacle', 10)
     routes = RouteRecorder(monitor, ids)
     settings = list(args.sim_settings)
     sim_params_client = None
@@ -494,6 +577,7 @@ def main(argv: list[str] | None = None) -> int:
         sim_params_client = AsyncParameterClient(monitor, 'sim')
     pending_sets: list[tuple[dict, object]] = []
     applied_settings: list[dict] = []
+    fault_log: list[dict] = []                    # what was injected, and when
     next_route_sample = 0.0
     executor = SingleThreadedExecutor()
     executor.add_node(monitor)
@@ -544,13 +628,26 @@ def main(argv: list[str] | None = None) -> int:
             t = status['t']
             if started is None and status['agents_heard'] >= args.agents:
                 started = (time.monotonic() - wall0, t)
-            while removals and removals[0][0] <= t:
-                _, victims = removals.pop(0)
-                kill_pub.publish(Int32MultiArray(data=victims))
-                for v in victims:
-                    children.kill(f'agent_{v}')
-                removed += len(victims)
-                print(f'\nlaunch_swarm: t={t:.1f} s removed agents {victims}', flush=True)
+            while robot_faults and robot_faults[0][0] <= t:
+                when, victims, topic = robot_faults.pop(0)
+                fault_pubs[topic].publish(Int32MultiArray(data=victims))
+                if topic == '/swarm/kill':
+                    for v in victims:
+                        children.kill(f'agent_{v}')
+                    removed += len(victims)
+                what = {'/swarm/kill': 'removed agents', '/swarm/radio_off': 'radio off for',
+                        '/swarm/radio_on': 'radio back on for'}[topic]
+                print(f'\nlaunch_swarm: t={t:.1f} s {what} {victims}', flush=True)
+                fault_log.append({'time': when, 'sent_at': t, 'topic': topic,
+                                  'agents': victims})
+                last_change_t = t
+            while obstacle_moves and obstacle_moves[0][0] <= t:
+                when, move = obstacle_moves.pop(0)
+                move_pub.publish(Float64MultiArray(data=move))
+                fault_log.append({'time': when, 'sent_at': t, 'topic': '/swarm/move_obstacle',
+                                  'obstacle': int(move[0]), 'offset': move[1:]})
+                print(f'\nlaunch_swarm: t={t:.1f} s obstacle {int(move[0])} moved by '
+                      f'({move[1]:g}, {move[2]:g}) m', flush=True)
                 last_change_t = t
             while settings and settings[0][0] <= t and sim_params_client.services_are_ready():
                 when, name, value = settings.pop(0)
@@ -591,7 +688,8 @@ def main(argv: list[str] | None = None) -> int:
                 print(line.lstrip('\r'), flush=True)
             if t >= args.duration:
                 break
-            if status['settled'] >= args.agents - removed and not removals and \
+            if status['settled'] >= args.agents - removed and not robot_faults and \
+                    not obstacle_moves and \
                     not settings and not pending_sets and t >= args.min_duration and \
                     t > args.last_switch and t - last_change_t > args.settle_hold:
                 settled_since = t if settled_since is None else settled_since
@@ -666,7 +764,7 @@ def main(argv: list[str] | None = None) -> int:
                                  resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
                              'seed': args.seed, 'truth_subscribers': truth_readers,
                              'goal_versions': goal_versions, 'agents_heard': heard,
-                             'sim_settings': sim_settings})
+                             'sim_settings': sim_settings, 'faults': fault_log})
     scenario = {k: v for k, v in vars(args).items()}
     scenario.update(beacons=beacons, domain=domain)
     write_metrics(out, [metrics], scenario)

@@ -8,6 +8,8 @@ are refused with the reason.
 
 from __future__ import annotations
 
+import json
+import math
 import time
 
 import pytest
@@ -84,6 +86,70 @@ def test_range_loss_and_wall_set_at_run_time_change_the_medium(tmp_path):
         assert _until(executor, lambda: len(sim.medium.neighbours(1)) < 2, timeout=30.0)
         assert _until(executor, lambda: sim.medium.wall is None, timeout=30.0)  # it left
         assert _until(executor, lambda: sorted(sim.medium.neighbours(1)) == [0, 2])
+    finally:
+        executor.shutdown()
+        sim.close()
+        sim.destroy_node()
+        probe.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def test_radio_kill_and_obstacle_move_on_command_bad_commands_ignored(tmp_path):
+    """The world's other faults: a robot's radio dies and comes back, an obstacle moves.
+
+    Robots at x = 0, 6 and 12 m; a 2 m square wall at x 8..10 shadows the 1-2 link. On
+    the pybullet backend the prism moves with the radio shadow. Unknown robots, unknown
+    obstacles and malformed commands leave the world as it was, and it keeps stepping.
+    """
+    pytest.importorskip('pybullet')
+    from std_msgs.msg import Float64MultiArray, Int32MultiArray
+
+    fleet_file = tmp_path / 'fleet.yaml'
+    save_fleet(fleet_file, [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 1, True, 6.0, 0.0),
+                            RobotSpec(2, 1, False, 12.0, 0.0)])
+    shape_file = tmp_path / 'shape.json'
+    shape_file.write_text(json.dumps({
+        'outer': [[-5, 5], [-5, 9], [-1, 9], [-1, 5]],
+        'obstacles': [[[8, -1], [10, -1], [10, 1], [8, 1]]]}))
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    executor = SingleThreadedExecutor(context=context)
+    sim = SimNode(context=context, parameter_overrides=[
+        Parameter('fleet_file', value=str(fleet_file)), Parameter('backend', value='pybullet'),
+        Parameter('terrain', value='flat'), Parameter('shape', value=str(shape_file)),
+        Parameter('real_time_factor', value=0.0), Parameter('max_agent_lag_s', value=0.0),
+        Parameter('half_size', value=20.0)])
+    probe = rclpy.create_node('fault_probe', context=context)
+    radio_off = probe.create_publisher(Int32MultiArray, '/swarm/radio_off', 10)
+    radio_on = probe.create_publisher(Int32MultiArray, '/swarm/radio_on', 10)
+    move = probe.create_publisher(Float64MultiArray, '/swarm/move_obstacle', 10)
+    executor.add_node(sim)
+    executor.add_node(probe)
+
+    def wall_height_at(x, y):
+        return float(sim.backend.ground_height([[x, y]])[0])
+
+    try:
+        assert _until(executor, lambda: sim.t > 0.5)
+        assert sorted(sim.medium.neighbours(1)) == [0]     # the wall shadows 1-2
+        assert wall_height_at(9.0, 0.0) > 0.5              # a prism stands there
+        _until(executor, lambda: radio_off.get_subscription_count() > 0)
+        radio_off.publish(Int32MultiArray(data=[0, 99]))   # 99: not in the fleet
+        assert _until(executor, lambda: sim.medium.neighbours(1) == [])
+        assert sim.alive.all()                             # the robot stays in the world
+        radio_on.publish(Int32MultiArray(data=[0]))
+        assert _until(executor, lambda: sim.medium.neighbours(1) == [0])
+
+        for bad in ([0.0, 1.0], [5.0, 0.0, 10.0], [0.5, 0.0, 10.0], [0.0, math.nan, 1.0]):
+            move.publish(Float64MultiArray(data=bad))      # short, no obstacle 5, 0.5, NaN
+        t_bad = sim.t
+        assert _until(executor, lambda: sim.t > t_bad + 1.0)
+        assert sorted(sim.medium.neighbours(1)) == [0] and wall_height_at(9.0, 0.0) > 0.5
+
+        move.publish(Float64MultiArray(data=[0.0, 0.0, 10.0]))   # out of the way
+        assert _until(executor, lambda: sorted(sim.medium.neighbours(1)) == [0, 2])
+        assert wall_height_at(9.0, 0.0) < 0.1 and wall_height_at(9.0, 10.0) > 0.5
+        assert sim.obstacles[0].centroid.y == pytest.approx(10.0)
     finally:
         executor.shutdown()
         sim.close()

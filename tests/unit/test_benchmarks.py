@@ -51,6 +51,10 @@ def test_tiny_suite_writes_every_section(tmp_path):
             for key in keys:
                 assert _positive(row[key]), (name, key, row[key])
     assert {r['method'] for r in sections['partition']} == {'bubble', 'fractal'}
+    world = sections['world']
+    assert [r['robots'] for r in world] == [10]
+    assert _positive(world[0]['real_time_factor']) and _positive(world[0]['physics_hz'])
+    assert world[0]['max_tilt_deg'] < 30.0 and world[0]['min_ground_clearance_m'] > 0.0
     ev = sections['evaluator']
     for key in ('wall_per_trial_s', 'cpu_per_trial_s', 'sim_s_per_trial', 'sim_s_per_wall_s',
                 'trials_per_min_one_process', 'trials_per_min_all_cores'):

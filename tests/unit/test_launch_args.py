@@ -3,7 +3,13 @@
 from __future__ import annotations
 
 import launch_swarm
-from launch_swarm import LaunchError, parse_agent_ids, parse_set_sim
+from launch_swarm import (
+    LaunchError,
+    parse_agent_ids,
+    parse_move_obstacle,
+    parse_robot_fault,
+    parse_set_sim,
+)
 import pytest
 
 BASE = ['--agents', '8', '--beacons', '3', '--shape', 'tests/data/square_8m.json',
@@ -99,3 +105,44 @@ def test_main_refuses_a_bad_set_sim_in_one_line(capsys, tmp_path):
     err = capsys.readouterr().err.strip()
     assert err.startswith("launch_swarm.py: --set-sim '60:range=5': the sim node has no")
     assert '\n' not in err and not out.exists()
+
+
+def test_robot_and_obstacle_faults_are_parsed_and_ordered():
+    args = _validate('--remove', '60:2,5', '--radio-off', '30:1', '--radio-on', '45:1',
+                     '--duration', '100')
+    assert args.robot_faults == [(30.0, [1], '/swarm/radio_off'),
+                                 (45.0, [1], '/swarm/radio_on'),
+                                 (60.0, [2, 5], '/swarm/kill')]
+    assert parse_robot_fault('--radio-off', ' 10 :3', 8) == (10.0, [3])
+    assert parse_move_obstacle('60:1:5,-2.5', 2) == (60.0, [1.0, 5.0, -2.5])
+
+
+@pytest.mark.parametrize(('flag', 'spec', 'says'), [
+    ('--remove', '60', 'write TIME:IDS'), ('--remove', '60:', 'write TIME:IDS'),
+    ('--radio-off', 'x:3', "'x' is not a sim time"), ('--radio-on', '-1:3', 'sim time >= 0'),
+    ('--radio-off', '60:a,b', 'not a list of agent ids'),
+    ('--remove', '60:3,8', 'agent ids run 0..7 with --agents 8, not [8]')])
+def test_bad_robot_fault_specs_name_the_flag_and_the_fix(flag, spec, says):
+    with pytest.raises(LaunchError, match=f'^{flag}') as err:
+        parse_robot_fault(flag, spec, 8)
+    assert says in str(err.value)
+
+
+@pytest.mark.parametrize(('spec', 'says'), [
+    ('60:0', 'write TIME:INDEX:DX,DY'), ('60:a:1,1', 'integer obstacle index'),
+    ('60:0:1', 'integer obstacle index'), ('60:2:1,1', 'has 2 obstacles (indices 0..1)'),
+    ('60:0:nan,1', 'finite metres')])
+def test_bad_obstacle_moves_name_the_fix(spec, says):
+    with pytest.raises(LaunchError, match='^--move-obstacle') as err:
+        parse_move_obstacle(spec, 2)
+    assert says in str(err.value)
+
+
+def test_faults_outside_the_run_or_the_shape_are_refused():
+    with pytest.raises(LaunchError, match='after the end of the run'):
+        _validate('--radio-off', '120:1', '--duration', '100')
+    with pytest.raises(LaunchError, match='the shape has 0 obstacles'):
+        _validate('--move-obstacle', '10:0:1,1')   # square_8m has none
+    with pytest.raises(LaunchError, match='--radio-off acts from the host that runs the sim'):
+        _validate('--agents-only', '--local-agents', '4-7', '--domain', '42',
+                  '--radio-off', '60:5')

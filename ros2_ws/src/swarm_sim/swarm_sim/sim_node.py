@@ -24,12 +24,20 @@ Topics
   subscribed ``/agent_K/cmd_force`` (geometry_msgs/WrenchStamped, N, map frame)
              ``/radio/tx`` (swarm_msgs/RadioPacketArray, batches from the agents)
              ``/swarm/kill`` (std_msgs/Int32MultiArray: robots to remove, a fault)
+             ``/swarm/radio_off``, ``/swarm/radio_on`` (std_msgs/Int32MultiArray: robots
+             whose radio dies or comes back; the robot stays in the world)
+             ``/swarm/move_obstacle`` (std_msgs/Float64MultiArray ``[k, dx, dy]``:
+             translate obstacle k of the shape spec by (dx, dy) m, bodies and radio
+             shadow alike; the agents are not told)
 
-Faults: ``/swarm/kill`` removes robots; three parameters change the radio medium at run
-time (``swarm_sim.medium.RUNTIME_SETTINGS``; a bad value is refused with the reason):
-``loss`` (packet loss), ``radio_range_m`` (range cut) and ``radio_wall_speed_mps`` (> 0
-starts a radio-opaque wall sweeping across the workspace from x = -half_size at that
-speed, from the sim time it is set; it cuts links, not bodies; 0 removes it).
+Faults: ``/swarm/kill`` removes robots, ``/swarm/radio_off`` silences radios,
+``/swarm/move_obstacle`` moves an obstacle (unknown robots or obstacles, non-finite or
+malformed commands are ignored with a log line naming them); three parameters change
+the radio medium at run time (``swarm_sim.medium.RUNTIME_SETTINGS``; a bad value is
+refused with the reason): ``loss`` (packet loss), ``radio_range_m`` (range cut) and
+``radio_wall_speed_mps`` (> 0 starts a radio-opaque wall sweeping across the workspace
+from x = -half_size at that speed, from the sim time it is set; it cuts links, not
+bodies; 0 removes it).
 Malformed force commands (NaN, huge) are rejected with one log line per robot.
 """
 
@@ -52,7 +60,8 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
-from std_msgs.msg import Int32MultiArray
+from shapely import affinity
+from std_msgs.msg import Float64MultiArray, Int32MultiArray
 from visualization_msgs.msg import Marker, MarkerArray
 
 from swarm_agent.agent_node import lean_publisher, lean_subscription
@@ -221,6 +230,12 @@ class SimNode(Node):
                               lambda m, i=self.index[r.id]: self._on_force(i, m), command)
         self.create_subscription(RadioPacketArray, '/radio/tx', self._on_tx, radio)
         self.create_subscription(Int32MultiArray, '/swarm/kill', self._on_kill, 10)
+        self.create_subscription(Int32MultiArray, '/swarm/radio_off',
+                                 lambda m: self._on_radio(m, False), 10)
+        self.create_subscription(Int32MultiArray, '/swarm/radio_on',
+                                 lambda m: self._on_radio(m, True), 10)
+        self.create_subscription(Float64MultiArray, '/swarm/move_obstacle',
+                                 self._on_move_obstacle, 10)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.medium.update_positions(self.ids, self.backend.positions())
         self._imu_v = self.backend.velocities().copy()
@@ -263,10 +278,47 @@ class SimNode(Node):
             if packet.source in self.index:
                 self.medium.transmit(self.t, packet)
 
+    def _known_robots(self, msg: Int32MultiArray, topic: str) -> list[int]:
+        """Fleet indices of the living robots a fault names; the others logged."""
+        unknown = [int(a) for a in msg.data if int(a) not in self.index]
+        if unknown:
+            self.get_logger().warning(f'{topic}: no robot {unknown} in the fleet (ids '
+                                      f'{min(self.ids)}..{max(self.ids)}); ignored')
+        return [self.index[int(a)] for a in msg.data
+                if int(a) in self.index and self.alive[self.index[int(a)]]]
+
+    def _on_radio(self, msg: Int32MultiArray, on: bool) -> None:
+        topic = '/swarm/radio_on' if on else '/swarm/radio_off'
+        for i in self._known_robots(msg, topic):
+            (self.medium.enable_radio if on else self.medium.disable_radio)(self.ids[i])
+            self.get_logger().warning(f't={self.t:.1f} s: robot {self.ids[i]} radio '
+                                      f'{"back on" if on else "off"} (fault injection)')
+
+    def _on_move_obstacle(self, msg: Float64MultiArray) -> None:
+        data = list(msg.data)
+        if (len(data) != 3 or not all(math.isfinite(v) for v in data)
+                or data[0] != int(data[0])):
+            self.get_logger().warning(
+                f'/swarm/move_obstacle: expected [index, dx, dy] with an integer index and '
+                f'finite metres, got {data}; ignored')
+            return
+        k, dx, dy = int(data[0]), data[1], data[2]
+        if not 0 <= k < len(self.obstacles):
+            self.get_logger().warning(
+                f'/swarm/move_obstacle: no obstacle {k} (the shape spec has '
+                f'{len(self.obstacles)}, indices from 0); ignored')
+            return
+        if hasattr(self.backend, 'move_obstacle'):
+            self.backend.move_obstacle(k, dx, dy)  # bodies; the point-mass model has none
+        self.obstacles[k] = affinity.translate(self.obstacles[k], dx, dy)
+        self.medium.set_obstacles(self.obstacles)
+        self.get_logger().warning(f't={self.t:.1f} s: obstacle {k} moved by ({dx:g}, '
+                                  f'{dy:g}) m (fault injection)')
+
     def _on_kill(self, msg: Int32MultiArray) -> None:
-        for agent in msg.data:
-            i = self.index.get(int(agent))
-            if i is not None and self.alive[i]:
+        for i in self._known_robots(msg, '/swarm/kill'):
+            agent = self.ids[i]
+            if self.alive[i]:
                 self.alive[i] = False
                 self.medium.remove(int(agent))
                 if hasattr(self.backend, 'remove'):
