@@ -77,6 +77,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument('--decentralized', action='store_true',
                    help='agents partition the announced shape themselves')
     p.add_argument('--gui', action='store_true', help='pybullet GUI (needs a display)')
+    p.add_argument('--markers', action='store_true',
+                   help='publish /swarm/markers for RViz (robots by type and mode, goals, '
+                        'shape, obstacles, radio links; off by default: the world then '
+                        'listens to every agent state)')
     p.add_argument('--rtf', type=float, default=0.0,
                    help='target real-time factor of the sim (0: as fast as possible)')
     p.add_argument('--remove', action='append', default=[],
@@ -586,7 +590,8 @@ def main(argv: list[str] | None = None) -> int:
 
     sim_params = {'fleet_file': str(fleet_file), 'shape': args.shape,
                   'real_time_factor': float(args.rtf), 'record_dir': str(out),
-                  'gui': args.gui, 'seed': args.seed, 'half_size': args.half_size}
+                  'gui': args.gui, 'seed': args.seed, 'half_size': args.half_size,
+                  'marker_rate_hz': 1.0 if args.markers else 0.0}
     children.start('sim', ['-m', 'swarm_sim.sim_node', *ros_args(sim_params)])
     mission_params = {'shape': args.shape, 'method': args.method,
                       'fleet_file': str(fleet_file), 'seed': args.seed,

@@ -34,10 +34,9 @@ from swarm_mission.robot_types import (  # noqa: E402
     load_robot_types,
     parse_type_counts,
     RobotTypeError,
+    TYPE_COLOURS,
 )
 from swarm_mission.shapes import load_shape, ShapeError  # noqa: E402
-
-TYPE_COLOURS = {1: 'tab:red', 2: 'tab:orange', 3: 'tab:purple'}
 
 
 def plot_partition(shape, goals, path: pathlib.Path, title: str) -> None:

@@ -102,7 +102,12 @@ def test_radio_kill_and_obstacle_move_on_command_bad_commands_ignored(tmp_path):
     obstacles and malformed commands leave the world as it was, and it keeps stepping.
     """
     pytest.importorskip('pybullet')
+    from rclpy.qos import QoSProfile
     from std_msgs.msg import Float64MultiArray, Int32MultiArray
+    from visualization_msgs.msg import MarkerArray
+
+    from swarm_mission import qos
+    from swarm_msgs.msg import AgentState
 
     fleet_file = tmp_path / 'fleet.yaml'
     save_fleet(fleet_file, [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 1, True, 6.0, 0.0),
@@ -123,6 +128,10 @@ def test_radio_kill_and_obstacle_move_on_command_bad_commands_ignored(tmp_path):
     radio_off = probe.create_publisher(Int32MultiArray, '/swarm/radio_off', 10)
     radio_on = probe.create_publisher(Int32MultiArray, '/swarm/radio_on', 10)
     move = probe.create_publisher(Float64MultiArray, '/swarm/move_obstacle', 10)
+    state_pub = probe.create_publisher(AgentState, '/agent_2/state', QoSProfile(**qos.STATE))
+    views = []
+    probe.create_subscription(MarkerArray, '/swarm/markers', views.append,
+                              QoSProfile(**qos.STATE))
     executor.add_node(sim)
     executor.add_node(probe)
 
@@ -150,6 +159,17 @@ def test_radio_kill_and_obstacle_move_on_command_bad_commands_ignored(tmp_path):
         assert _until(executor, lambda: sorted(sim.medium.neighbours(1)) == [0, 2])
         assert wall_height_at(9.0, 0.0) < 0.1 and wall_height_at(9.0, 10.0) > 0.5
         assert sim.obstacles[0].centroid.y == pytest.approx(10.0)
+
+        # The RViz view follows: the moved obstacle, the links, the mode agent 2 reports.
+        state_pub.publish(AgentState(id=2, mode=AgentState.MODE_LOST))
+        assert _until(executor, lambda: sim._modes.get(2) == AgentState.MODE_LOST)
+        views.clear()
+        assert _until(executor, lambda: len(views) > 0)
+        latest = {(m.ns, m.id): m for m in views[-1].markers}
+        outline = latest[('obstacles', 0)]
+        assert min(p.y for p in outline.points) == pytest.approx(9.0)
+        assert len(latest[('links', 0)].points) == 2 * 3          # every pair, no wall
+        assert latest[('modes', 2)].color.r == 1.0                # orange: lost
     finally:
         executor.shutdown()
         sim.close()

@@ -13,6 +13,10 @@ import pathlib
 import yaml
 
 GRAVITY = 9.81  # m/s^2
+# One colour per type (RGB in 0..1) for every view: figures, pybullet bodies, RViz markers
+# (matplotlib's tab:red, tab:orange, tab:purple).
+TYPE_COLOURS = {1: (0.839, 0.153, 0.157), 2: (1.0, 0.498, 0.055), 3: (0.580, 0.404, 0.741)}
+OTHER_COLOUR = (0.5, 0.5, 0.5)
 
 
 def package_config(name: str) -> pathlib.Path:

@@ -20,10 +20,14 @@ Topics
              ``/agent_K/radio/rx`` (swarm_msgs/RadioPacketArray, what the medium
              delivered to the robot since the last batch, ``radio_rate_hz``)
              ``/swarm/truth`` (swarm_msgs/SwarmTruth, for metrics only)
-             ``/swarm/markers`` (visualization_msgs/MarkerArray, for RViz)
+             ``/swarm/markers`` (visualization_msgs/MarkerArray for RViz, built by
+             ``swarm_sim.markers``: robots by type and mode, goals, shape, obstacles,
+             radio links; ``marker_rate_hz``, 0 turns it off)
   subscribed ``/agent_K/cmd_force`` (geometry_msgs/WrenchStamped, N, map frame)
              ``/radio/tx`` (swarm_msgs/RadioPacketArray, batches from the agents)
              ``/swarm/kill`` (std_msgs/Int32MultiArray: robots to remove, a fault)
+             ``/agent_K/state``, ``/swarm/goals``, ``/swarm/shape`` (for the markers
+             only, and only while they are on)
              ``/swarm/radio_off``, ``/swarm/radio_on`` (std_msgs/Int32MultiArray: robots
              whose radio dies or comes back; the robot stays in the world)
              ``/swarm/move_obstacle`` (std_msgs/Float64MultiArray ``[k, dx, dy]``:
@@ -62,22 +66,27 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
 from shapely import affinity
 from std_msgs.msg import Float64MultiArray, Int32MultiArray
-from visualization_msgs.msg import Marker, MarkerArray
+from visualization_msgs.msg import MarkerArray
 
 from swarm_agent.agent_node import lean_publisher, lean_subscription
 from swarm_agent.conversions import frames_or_log, frames_to_msg, stamp_seconds
 from swarm_agent.packet import Packet
 from swarm_mission import qos
+from swarm_mission.conversions import goals_from_msg, shape_from_msg
 from swarm_mission.robot_types import load_robot_types
 from swarm_mission.shapes import load_shape, ShapeError
 from swarm_msgs.msg import (
+    AgentState,
     AgentTruth,
+    FormationShape,
+    GoalArray,
     RadioPacketArray,
     RangeArray,
     RangeMeasurement,
     SwarmTruth,
 )
 from swarm_sim.fleet import FleetError, load_fleet
+from swarm_sim.markers import swarm_markers
 from swarm_sim.medium import MediumConfig, RadioMedium, RUNTIME_SETTINGS, SweepingWall
 from swarm_sim.sensors import GpsModel, ImuModel
 
@@ -94,7 +103,7 @@ PARAMETERS = {
     'range_rate_hz': (1.0, 'TOA ranging rate per simulated second'),
     'radio_rate_hz': (20.0, 'Radio delivery batches per simulated second, per robot'),
     'truth_rate_hz': (2.0, 'Ground-truth publication rate (sim time)'),
-    'marker_rate_hz': (1.0, 'RViz marker rate (sim time)'),
+    'marker_rate_hz': (1.0, 'RViz marker rate on /swarm/markers (sim time); 0: none'),
     'command_timeout_s': (0.5, 'Force commands older than this are dropped to zero'),
     'max_agent_lag_s': (0.2, 'Sim time the world may run ahead of the slowest agent; 0: off'),
     'wait_for_agents_s': (60.0, "Wall seconds to wait for every robot's first command"),
@@ -214,6 +223,18 @@ class SimNode(Node):
         self.clock_pub = self.create_publisher(Clock, '/clock', 10)
         self.truth_pub = self.create_publisher(SwarmTruth, '/swarm/truth', state)
         self.marker_pub = self.create_publisher(MarkerArray, '/swarm/markers', state)
+        # What the markers show beyond the world: modes, goals and the shape, heard only
+        # when markers are on (a state subscription per robot costs callbacks).
+        self._modes: dict[int, int] = {}
+        self._goals: list = []
+        self._shape = None
+        if p['marker_rate_hz'] > 0:
+            latched = QoSProfile(**qos.LATCHED)
+            self.create_subscription(GoalArray, '/swarm/goals', self._on_goals, latched)
+            self.create_subscription(FormationShape, '/swarm/shape', self._on_shape, latched)
+            for r in self.fleet:
+                lean_subscription(self, AgentState, f'/agent_{r.id}/state',
+                                  lambda m: self._modes.__setitem__(m.id, m.mode), state)
         self.imu_pubs, self.gps_pubs, self.range_pubs, self.rx_pubs = {}, {}, {}, {}
         # Per-robot topics without default QoS event handlers (agent_node.lean_publisher):
         # with them, 50 robots made a wait set of about 750 entities.
@@ -463,7 +484,7 @@ class SimNode(Node):
                 self.range_pubs[self.ids[i]].publish(msg)
         if self._due_now('truth', 'truth_rate_hz'):
             self._publish_truth(stamp, pos)
-        if self._due_now('marker', 'marker_rate_hz'):
+        if self.params['marker_rate_hz'] > 0 and self._due_now('marker', 'marker_rate_hz'):
             self._publish_markers(stamp, pos)
 
     def _publish_truth(self, stamp, pos) -> None:
@@ -483,25 +504,21 @@ class SimNode(Node):
         self.truth_pub.publish(msg)
 
     def _publish_markers(self, stamp, pos) -> None:
-        colours = {1: (0.9, 0.2, 0.2), 2: (1.0, 0.6, 0.1), 3: (0.6, 0.3, 0.8)}
-        markers = MarkerArray()
-        for i, r in enumerate(self.fleet):
-            m = Marker()
-            m.header.stamp = stamp
-            m.header.frame_id = 'map'
-            m.ns = 'robots'
-            m.id = r.id
-            m.type = Marker.CYLINDER
-            m.action = Marker.ADD if self.alive[i] else Marker.DELETE
-            m.pose.position.x, m.pose.position.y = float(pos[i, 0]), float(pos[i, 1])
-            m.pose.orientation.w = 1.0
-            d = 2.0 * self.types[r.type].coverage_radius
-            m.scale.x = m.scale.y = d
-            m.scale.z = 0.1
-            m.color.r, m.color.g, m.color.b = colours.get(r.type, (0.5, 0.5, 0.5))
-            m.color.a = 0.8
-            markers.markers.append(m)
-        self.marker_pub.publish(markers)
+        self.marker_pub.publish(swarm_markers(
+            stamp, self.ids, [r.type for r in self.fleet],
+            [self.types[r.type].coverage_radius for r in self.fleet], pos, self.alive,
+            modes=self._modes, goals=self._goals,
+            region=self._shape.region if self._shape is not None else None,
+            obstacles=self.obstacles, links=self.medium.adjacency()[1]))
+
+    def _on_goals(self, msg: GoalArray) -> None:
+        self._goals = goals_from_msg(msg)
+
+    def _on_shape(self, msg: FormationShape) -> None:
+        try:
+            self._shape = shape_from_msg(msg)
+        except ValueError as exc:
+            self.get_logger().warning(f'/swarm/shape: {exc}; markers keep the last shape')
 
     def close(self) -> None:
         """Flush the run record and release the physics."""

@@ -89,7 +89,14 @@ import shapely
 from shapely.geometry import Point, Polygon
 from shapely.geometry.polygon import orient
 
-from swarm_mission.robot_types import GRAVITY, robot_type, RobotType, RobotTypeError
+from swarm_mission.robot_types import (
+    GRAVITY,
+    OTHER_COLOUR,
+    robot_type,
+    RobotType,
+    RobotTypeError,
+    TYPE_COLOURS,
+)
 from swarm_sim.terrain import (
     DEFAULT_CELL,
     DEFAULT_FEATURE,
@@ -100,8 +107,6 @@ from swarm_sim.terrain import (
 
 DEFAULT_PHYSICS_HZ = 100.0
 SPHERE_FRACTION = 0.2          # contact sphere radius / coverage radius
-TYPE_COLOURS = {1: (0.85, 0.2, 0.2, 1.0), 2: (0.2, 0.45, 0.85, 1.0),
-                3: (0.2, 0.7, 0.3, 1.0)}
 
 
 class WorldError(ValueError):
@@ -351,7 +356,7 @@ class PybulletBackend:
         vis = -1
         if self._visuals:
             # The thesis's cylindrical links bind neighbouring spheres (4.1).
-            colour = list(TYPE_COLOURS.get(rtype.type_id, (0.6, 0.6, 0.6, 1.0)))
+            colour = [*TYPE_COLOURS.get(rtype.type_id, OTHER_COLOUR), 1.0]
             along_x = pb.getQuaternionFromEuler([0.0, 0.5 * math.pi, 0.0])
             along_y = pb.getQuaternionFromEuler([0.5 * math.pi, 0.0, 0.0])
             vis = pb.createVisualShapeArray(
