@@ -290,7 +290,7 @@ def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: in
             monitor.snapshot()[0].values()), 60.0, 'agents or camera never came up', children)
         children.start('mission', ['-m', 'swarm_mission.mission_node', *ros_args({
             'shape': name, 'method': 'bubble', 'type_counts': type_counts,
-            'decentralized': True})])
+            'decentralized': True, 'formation_margin_m': 0.0})])
         _wait(lambda: monitor.snapshot()[2] is not None, 30.0,
               'the mission node never announced the shape', children)
         t_start = monitor.snapshot()[2]

@@ -13,6 +13,7 @@ boundary-counting one). Writes into --out:
 
 Example:
   scripts/env.sh python scripts/mesh_study.py --seeds 20 --out results/mesh_study
+  scripts/env.sh python scripts/mesh_study.py --boundary thesis --out results/mesh_thesis
 """
 
 from __future__ import annotations
@@ -30,7 +31,13 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-from swarm_mission.partition import METHODS, partition, PartitionError  # noqa: E402
+from swarm_mission.bubble_packing import BubbleConfig  # noqa: E402
+from swarm_mission.partition import (  # noqa: E402
+    METHODS,
+    partition,
+    PartitionConfig,
+    PartitionError,
+)
 from swarm_mission.robot_types import (  # noqa: E402
     default_type_counts,
     load_robot_types,
@@ -111,8 +118,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--seeds', type=int, default=20)
     parser.add_argument('--agents', type=int, default=50)
     parser.add_argument('--types', default='', help='TYPE:COUNT list (default 20:20:10)')
+    parser.add_argument('--boundary', choices=('layer', 'mirror', 'thesis'), default=None,
+                        help="bubble packing's shape repulsion (default: BubbleConfig's, "
+                             "'layer'; 'thesis' is eq. 3.97, the thesis's Table 4.3 trend)")
     parser.add_argument('--out', required=True)
     args = parser.parse_args(argv)
+    config = (PartitionConfig(bubble=BubbleConfig(boundary=args.boundary))
+              if args.boundary else None)
     if args.seeds <= 0 or args.agents <= 0:
         print('mesh_study: error: --seeds and --agents must be positive', file=sys.stderr)
         return 2
@@ -128,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [(n, m, s) for n in shapes for m in METHODS for s in range(args.seeds)]
     for name, method, seed in tqdm(jobs, desc='partitions', unit='run'):
         try:
-            result = partition(shapes[name], counts, radii, method, seed=seed)
+            result = partition(shapes[name], counts, radii, method, seed=seed, config=config)
         except PartitionError as exc:
             print(f'mesh_study: error: {name} {method} seed {seed}: {exc}', file=sys.stderr)
             return 2

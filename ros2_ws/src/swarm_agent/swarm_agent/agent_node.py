@@ -86,6 +86,8 @@ PARAMETERS = {
     'partition_locally': (False, 'Partition announced shapes on the agent itself'),
     'type_counts': ('', 'Swarm composition for local partitioning, e.g. 1:20,2:20,3:10'),
     'partition_seed': (0, 'Seed of the local partition (same on every agent)'),
+    'formation_margin_m': (0.6, 'Band (m) inside the contour a local partition leaves free '
+                                "for localization error (as the mission's); 0 on hardware"),
     'robot_types_file': ('', 'Robot type table YAML (default: the package config)'),
 }
 
@@ -152,6 +154,11 @@ class AgentNode(Node):
                 raise BrainConfigError(
                     f'parameter {rate} must be above 0 Hz, got {p[rate]}: set it in '
                     f'config/agent.yaml or with --ros-args -p {rate}:=<Hz>')
+        if not (math.isfinite(p['formation_margin_m']) and p['formation_margin_m'] >= 0.0):
+            raise BrainConfigError(
+                f'parameter formation_margin_m must be a finite number >= 0 m, got '
+                f'{p["formation_margin_m"]}: set it in config/agent.yaml or with --ros-args '
+                '-p formation_margin_m:=0.6')
         self.params = p
         self.brain = make_brain(
             agent_id=p['agent_id'], agent_type=p['agent_type'], is_beacon=p['is_beacon'],
@@ -266,7 +273,8 @@ class AgentNode(Node):
             result = partition(shape, type_counts_from(self._type_counts),
                                self.brain.config.type_radii, self.params['method'],
                                seed=self.params['partition_seed'],
-                               previous=self.brain.goals or None)
+                               previous=self.brain.goals or None,
+                               margin=self.params['formation_margin_m'])
         except (PartitionError, ShapeError, ValueError) as exc:
             self.get_logger().error(f'local partition of shape {version} failed: {exc}')
             return
@@ -290,7 +298,10 @@ class AgentNode(Node):
         # An unchanged force (a parked robot: zero) is repeated at keepalive_hz only: the
         # simulator holds the last command and paces its clock to the stamps it gets.
         force = (float(out.force[0]), float(out.force[1]))
-        if force != self._last_force or t - self._last_force_t >= self._keepalive_s:
+        # (Half a microsecond of slack: sim times are sums of float steps, and a keepalive
+        # due at exactly one period must not wait for the next, the world may be holding
+        # its clock for it.)
+        if force != self._last_force or t - self._last_force_t >= self._keepalive_s - 5e-7:
             self._last_force, self._last_force_t = force, t
             wrench = WrenchStamped()
             wrench.header.stamp = now.to_msg()

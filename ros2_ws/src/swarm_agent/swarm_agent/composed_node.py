@@ -13,7 +13,8 @@ process in the executor, under 10 % in the agents' callbacks):
 
 - With ``use_sim_time`` the agents do not each subscribe to ``/clock``: their clocks are
   attached to one time source of the container (50 agents at a 50 Hz clock were 2500
-  clock callbacks a second through one executor).
+  clock callbacks a second through one executor), and so is the clock of the timers
+  that step them, so an agent never reads an older time than the tick it serves.
 - One timer steps every agent's inner loop (``AgentNode.on_control``), one publishes
   every agent's state and one every agent's routes, instead of three timers per agent.
 - The agents have no parameter or type-description services (seven services each) and
@@ -31,6 +32,7 @@ import sys
 
 from rcl_interfaces.msg import ParameterDescriptor
 import rclpy
+from rclpy.clock import ROSClock
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -77,8 +79,17 @@ class ComposedAgents(Node):
         self.executor_ = executor
         self.agents: dict[int, AgentNode] = {}
         # One /clock subscription for all: the container's time source drives every
-        # agent's clock (the agents themselves run with use_sim_time false).
+        # agent's clock (the agents themselves run with use_sim_time false) and the clock
+        # of the container's timers that step them. Not the container node's own clock:
+        # that one follows its own /clock subscription, and an agent stepped by a timer on
+        # it could read a time one message older than the timer's. Measured: a parked
+        # agent then skipped its keepalive command, the world held its clock for it and
+        # the timer never fired again; 10 s (wall) stalls until the world gave up on it.
         self._time_source = TimeSource(node=self) if use_sim_time else None
+        timer_clock = self.get_clock()
+        if self._time_source is not None:
+            timer_clock = ROSClock()
+            self._time_source.attach_clock(timer_clock)
         # One batch of every agent's radio frames per period (20 messages a second for
         # the whole swarm instead of one per frame per agent).
         for rate in ('radio_tx_hz', 'control_rate_hz', 'state_rate_hz', 'routes_rate_hz'):
@@ -114,9 +125,10 @@ class ComposedAgents(Node):
                 self._time_source.attach_clock(node.get_clock())
             self.agents[agent_id] = node
             executor.add_node(node)
-        self.create_timer(1.0 / p['control_rate_hz'], lambda: self._each('on_control'))
-        self.create_timer(1.0 / p['state_rate_hz'], lambda: self._each('publish_state'))
-        self.create_timer(1.0 / p['routes_rate_hz'], lambda: self._each('publish_routes'))
+        for rate, method in (('control_rate_hz', 'on_control'),
+                             ('state_rate_hz', 'publish_state'),
+                             ('routes_rate_hz', 'publish_routes')):
+            self.create_timer(1.0 / p[rate], lambda m=method: self._each(m), clock=timer_clock)
         self.create_subscription(Int32MultiArray, '/swarm/kill', self._on_kill, 10)
         self.get_logger().info(f'{len(self.agents)} agents composed in one process')
 

@@ -24,7 +24,7 @@ Force laws (``BubbleConfig.force``):
 
 Shape repulsion (``BubbleConfig.boundary``):
 
-- ``'layer'``: the boundary row lies on the contour. Every bubble is kept in
+- ``'layer'`` (default): the boundary row lies on the contour. Every bubble is kept in
   the boundary layer, the shape eroded by the largest coverage radius r_max (the closest
   one common row can come to the contour with every circle inside), as a hard
   constraint in place of a repulsion: the lattice pressure of eq. 3.95 presses the
@@ -37,12 +37,15 @@ Shape repulsion (``BubbleConfig.boundary``):
   epsilon_t (eq. 3.104). A row on one common offset curve leaves such triangles outside
   the shape. Running longer (tolerance 1e-4, 3000 iterations) or changing the spacing by
   5 % did not remove them.
-- ``'mirror'`` (default): the interbubble law on each bubble's mirror image in the nearest
-  boundary point, which settles the boundary row half a spacing from the boundary. It is
-  the default because robots park within about a metre of their goals (0.3 m hold,
-  0.8 m resume radius, ~0.5 m localization error): with ``'layer'`` the outer row is
-  only r_max inside the contour, and in the 12-agent ROS e2e scenario a type-1 robot
-  parked 0.12 m outside the shape in 2 runs of 2.
+- ``'mirror'``: the interbubble law on each bubble's mirror image in the nearest
+  boundary point, which settles the boundary row half a spacing from the boundary. It
+  was the default while the running system partitioned the shape itself: robots park
+  within about a metre of their goals (0.3 m hold, 0.8 m resume radius, ~0.5 m
+  localization error), and with the outer row only r_max inside the contour a type-1
+  robot parked 0.12 m outside the shape in the 12-agent ROS e2e (2 runs of 2). The
+  running system now partitions the shape shrunk by a localization margin
+  (``partition(..., margin=)``, mission ``formation_margin_m``), which keeps that
+  safety band without giving up the mesh.
 - ``'thesis'``: eq. 3.97, k_r sum_k (x_i - z_k) / |x_i - z_k|^3 dz over equally spaced
   boundary samples (eq. 3.98).
 
@@ -80,7 +83,7 @@ class BubbleConfig:
 
     force: str = 'shimada'          # 'shimada' | 'thesis' (eq. 3.95 in metres)
     spacing: str = 'auto'           # 'auto' (from area and agents) | 'thesis' (l0)
-    boundary: str = 'mirror'        # 'mirror' | 'layer' | 'thesis' (eq. 3.97)
+    boundary: str = 'layer'         # 'layer' | 'mirror' | 'thesis' (eq. 3.97)
     a: float = -0.1                 # eq. 3.95, thesis chapter 4
     b: float = -0.2
     c: float = -0.3

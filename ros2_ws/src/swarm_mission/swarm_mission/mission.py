@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 import json
 import logging
+import math
 import pathlib
 
 import yaml
@@ -82,6 +83,15 @@ class MissionConfig:
     seed: int = 0
     agent_timeout_s: float = 6.0     # silence after which an agent is declared lost
     repair: bool = True              # re-partition for the survivors when agents are lost
+    # The shape is partitioned shrunk by this band (m): a robot parks up to ~1 m off its
+    # goal (0.3 m hold radius + localization error, RMS ~0.5 m), and the outer goals of
+    # bubble packing lie only the largest coverage radius inside the contour.
+    formation_margin: float = 0.6
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.formation_margin) and self.formation_margin >= 0.0):
+            raise ShapeError(f'formation_margin must be a finite number >= 0 m, got '
+                             f'{self.formation_margin!r} (mission formation_margin_m)')
 
 
 @dataclass
@@ -128,7 +138,12 @@ class Mission:
             return True
         previous = self.goals if (self.config.method == 'bubble' and self.goals) else None
         result = partition(self.shape, self.type_counts(), self.radii, self.config.method,
-                           seed=self.config.seed, previous=previous)
+                           seed=self.config.seed, previous=previous,
+                           margin=self.config.formation_margin)
+        if result.margin < self.config.formation_margin:
+            LOG.warning('shape %s partitioned without its %.2f m margin (shrunk, it splits, '
+                        'vanishes or is too small for the swarm)', self.shape.name,
+                        self.config.formation_margin)
         self.last_result = result
         self.goals = list(result.goals)
         self.goal_version += 1

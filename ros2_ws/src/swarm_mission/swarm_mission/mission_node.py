@@ -43,6 +43,9 @@ PARAMETERS = {
     'decentralized': (False, 'Only announce shapes; agents partition themselves'),
     'agent_timeout_s': (6.0, 'Silence after which an agent is declared lost'),
     'repair': (True, 'Re-partition for the survivors when agents are lost'),
+    'formation_margin_m': (0.6, 'Partition the shape shrunk by this band (m) so robots '
+                                'parked off their goals under localization error stay '
+                                'inside; 0: the shape as is'),
 }
 
 
@@ -69,7 +72,8 @@ class MissionNode(Node):
                                      f'known: {sorted(types)}')
         self.mission = Mission(
             MissionConfig(method=p['method'], seed=p['seed'],
-                          agent_timeout_s=p['agent_timeout_s'], repair=p['repair']),
+                          agent_timeout_s=p['agent_timeout_s'], repair=p['repair'],
+                          formation_margin=p['formation_margin_m']),
             agent_types=agent_types,
             radii={t: r.coverage_radius for t, r in types.items()})
         self._sequence = (load_sequence(p['sequence_file'], scale=p['shape_scale'])

@@ -28,7 +28,7 @@ from swarm_mission.fractals import FractalConfig, randomized_fractals
 from swarm_mission.goals import Goal, PartitionError
 from swarm_mission.mesh_quality import irregularities
 from swarm_mission.robot_types import package_config
-from swarm_mission.shapes import Shape
+from swarm_mission.shapes import Shape, ShapeError
 
 LOG = logging.getLogger(__name__)
 METHODS = ('bubble', 'fractal')
@@ -80,6 +80,7 @@ class PartitionResult:
     epsilon_g_with_boundary: float = float('nan')
     spacing: float = float('nan')
     seed: int = 0
+    margin: float = 0.0        # m the shape was shrunk by before partitioning (``margin``)
 
     def metrics(self) -> dict:
         """The ``metrics.json`` content."""
@@ -89,7 +90,7 @@ class PartitionResult:
                 'epsilon_g': self.epsilon_g,
                 'epsilon_t_with_boundary': self.epsilon_t_with_boundary,
                 'epsilon_g_with_boundary': self.epsilon_g_with_boundary,
-                'spacing': self.spacing, 'seed': self.seed}
+                'spacing': self.spacing, 'seed': self.seed, 'margin': self.margin}
 
 
 def _check_swarm(type_counts: Mapping[int, int], radii: Mapping[int, float]) -> list[int]:
@@ -153,13 +154,20 @@ def _previous_start(previous: Sequence[Goal], types: list[int]) -> tuple[np.ndar
 def partition(shape: Shape, type_counts: Mapping[int, int], radii: Mapping[int, float],
               method: str = 'bubble', *, seed: int = 0,
               previous: Sequence[Goal] | None = None,
-              config: PartitionConfig | None = None) -> PartitionResult:
+              config: PartitionConfig | None = None,
+              margin: float = 0.0) -> PartitionResult:
     """Partition ``shape`` into one goal per agent: ``type_counts`` {type: count}.
 
     ``radii`` maps robot type to coverage radius (Table 4.1). ``method`` is 'bubble'
     (Algorithm 1 + meshing; ``previous`` goals -> incremental re-mesh of a changed
     shape, 4.3.4) or 'fractal' (Algorithm 2). Deterministic for a given seed. Raises
     PartitionError for a bad method, swarm or a shape too small (saying by how much).
+
+    ``margin`` > 0 partitions the shape shrunk by that many metres (``Shape.inset``): the
+    running system's band for localization error, so that a robot parked off its goal
+    stays inside (mission ``formation_margin_m``). When the shrunk shape splits, vanishes
+    or is too small for the swarm, the shape itself is partitioned; ``result.margin``
+    says which was used.
     """
     if method not in METHODS:
         raise PartitionError(f'unknown partition method {method!r}; use one of {METHODS}')
@@ -168,6 +176,18 @@ def partition(shape: Shape, type_counts: Mapping[int, int], radii: Mapping[int, 
                              f'{type(shape).__name__}')
     config = config or PartitionConfig()
     types = _check_swarm(type_counts, radii)
+    if not (isinstance(margin, (int, float)) and math.isfinite(margin) and margin >= 0):
+        raise PartitionError(f'margin must be a finite number >= 0 m, got {margin!r}')
+    if margin > 0:
+        # Method and swarm are valid: a failure here is the shrunk shape's.
+        try:
+            result = partition(shape.inset(margin), type_counts, radii, method, seed=seed,
+                               previous=previous, config=config)
+        except (PartitionError, ShapeError):
+            pass   # partition the shape itself below; result.margin stays 0
+        else:
+            result.margin = float(margin)
+            return result
     bubble_radii = np.array([float(radii[t]) for t in types])
     rng = np.random.Generator(np.random.PCG64(int(seed)))
     started = time.perf_counter()   # reported only; never used by the algorithms

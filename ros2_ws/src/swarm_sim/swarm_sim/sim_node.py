@@ -392,6 +392,20 @@ class SimNode(Node):
             # late-starting nodes learn it and fire their timers. Not at every tick:
             # each /clock message wakes every agent process (50 of them per tick).
             self._publish_clock(self._stamp())
+            self._log_hold()
+
+    def _log_hold(self) -> None:
+        """Name the agent the world waits for, when it has waited a wall second."""
+        waited = self.alive & np.isfinite(self.force_stamp)
+        if not waited.any() or time.monotonic() - self._started_wall < 5.0:
+            return
+        i = int(np.flatnonzero(waited)[np.argmin(self.force_stamp[waited])])
+        held = time.monotonic() - self.force_wall[i]
+        if held >= 1.0:
+            self.get_logger().warning(
+                f't={self.t:.2f} s: held by robot {self.ids[i]}: its last command is stamped '
+                f'{self.force_stamp[i]:.2f} s and came {held:.1f} s (wall) ago',
+                throttle_duration_sec=5.0)
 
     def _steps_agents_allow(self) -> int:
         """Physics steps possible without running ahead of the slowest living agent."""

@@ -1,0 +1,108 @@
+"""The composed agents answer every advance of a lockstepping world's clock.
+
+sim_node runs at most ``max_agent_lag_s`` (0.2 s) of sim time ahead of the slowest
+agent's last command stamp, and only advances /clock when it may: an agent that lets a
+clock advance go unanswered stalls the world (measured before the fix: 10 s wall stalls
+until the world stopped waiting for it, twelve-agent runs at RTF 1-1.5 instead of 3-4.6).
+This test is that world without the physics: it advances /clock by 0.1 s as sim_node
+computes it (steps x 0.01 s) and requires, after every advance, a command from every
+agent stamped at most one advance behind, within a wall-clock bound.
+"""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+
+from builtin_interfaces.msg import Time  # noqa: E402
+from geometry_msgs.msg import WrenchStamped  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import QoSProfile  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+
+from swarm_agent.agent_node import make_executor  # noqa: E402
+from swarm_agent.composed_node import ComposedAgents  # noqa: E402
+from swarm_mission import qos  # noqa: E402
+from swarm_sim.fleet import RobotSpec, save_fleet  # noqa: E402
+
+AGENTS = 6
+ADVANCES = 150
+STEP_S = 0.01        # sim_node's physics step
+STEPS_PER_ADVANCE = 10
+
+
+def test_every_clock_advance_is_answered_by_every_agent(tmp_path):
+    fleet_file = tmp_path / 'fleet.yaml'
+    # Far apart, no shape and no goals: every agent stands still, so its zero force is
+    # repeated at the keepalive rate only (the case that stalled).
+    save_fleet(fleet_file, [RobotSpec(i, 1 + i % 3, i < 3, 10.0 * i, 0.0)
+                            for i in range(AGENTS)])
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    executor = make_executor(context=context)
+    container = ComposedAgents(executor, context=context, parameter_overrides=[
+        Parameter('fleet_file', value=str(fleet_file)),
+        Parameter('use_sim_time', value=True)])
+    executor.add_node(container)
+    probe = rclpy.create_node('world', context=context)
+    executor.add_node(probe)
+    clock = probe.create_publisher(Clock, '/clock', 10)
+    stamps = {i: -1.0 for i in range(AGENTS)}
+    command = QoSProfile(**qos.COMMAND)
+    for i in range(AGENTS):
+        probe.create_subscription(
+            WrenchStamped, f'/agent_{i}/cmd_force',
+            lambda m, i=i: stamps.__setitem__(i, m.header.stamp.sec
+                                              + m.header.stamp.nanosec * 1e-9), command)
+
+    def publish(t: float) -> None:
+        sec = int(t)
+        clock.publish(Clock(clock=Time(sec=sec, nanosec=int(round((t - sec) * 1e9)))))
+
+    def spin_until(condition, timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while not condition() and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.01)
+        return condition()
+
+    try:
+        # The stall's cause: the container's timers ran on the container node's own clock,
+        # fed by its own /clock subscription, while the agents' clocks followed a second
+        # one; a timer could fire on a time the agents had not read yet. One time source
+        # now feeds both (a race between two DDS readers, hence checked here directly).
+        source = container._time_source
+        agent_clocks = {id(a.get_clock()) for a in container.agents.values()}
+        stepping = [tmr for tmr in container.timers if tmr.clock is not container.get_clock()]
+        assert len(stepping) == 3                 # control, state, routes
+        timer_clocks = {id(tmr.clock) for tmr in stepping}
+        assert len(timer_clocks) == 1
+        assert agent_clocks | timer_clocks <= {id(c) for c in source._associated_clocks}
+        # Start-up: advance until every agent has commanded once (discovery, first timers).
+        k = 0
+        deadline = time.monotonic() + 30.0
+        while min(stamps.values()) < 0.0 and time.monotonic() < deadline:
+            k += 1
+            publish(k * STEPS_PER_ADVANCE * STEP_S)
+            spin_until(lambda: min(stamps.values()) >= 0.0, 0.5)
+        assert min(stamps.values()) >= 0.0, f'agents never commanded: {stamps}'
+        late = []
+        first = k + 1
+        for j in range(first, first + ADVANCES):
+            t = j * STEPS_PER_ADVANCE * STEP_S
+            publish(t)
+            # The world's rule: it may step again once the slowest stamp + 0.2 s is
+            # beyond t, i.e. every agent has answered this advance or the one before.
+            if not spin_until(lambda t=t: min(stamps.values()) >= t - 0.1 - 1e-6, 2.0):
+                late.append((round(t, 2), dict(stamps)))
+                publish(t)   # what sim_node does while it holds: repeat the time
+                spin_until(lambda t=t: min(stamps.values()) >= t - 0.1 - 1e-6, 1.0)
+        assert not late, f'{len(late)} of {ADVANCES} advances unanswered, first {late[:3]}'
+    finally:
+        executor.shutdown()
+        container.destroy_all()
+        container.destroy_node()
+        probe.destroy_node()
+        rclpy.try_shutdown(context=context)
