@@ -74,3 +74,15 @@ def test_a_corrupt_batch_is_dropped_with_one_line_naming_the_topic():
     assert len(logger.lines) == 1 and '/radio/tx' in logger.lines[0]
     assert 'announces 3 payload bytes, 2 left' in logger.lines[0]
     assert frames_or_log(good, logger, '/radio/tx') == _frames()
+
+
+def test_one_frame_heard_by_many_is_decoded_once_and_keeps_each_stamp():
+    # A broadcast reaches every neighbour; in a composed process the receivers share the
+    # frozen Packet (decoded once) but each keeps its own delivery stamp.
+    frame = Packet(3, BROADCAST, Kind.HEARTBEAT, 41, 1, b'\x01\x02\x03')
+    (t1, a), = unpack_frames(pack_frames([(10.25, frame)]))
+    (t2, b), = unpack_frames(pack_frames([(10.75, frame)]))
+    assert (t1, t2) == (10.25, 10.75) and a == b == frame and a is b
+    other = Packet(4, BROADCAST, Kind.HEARTBEAT, 41, 1, b'\x01\x02\x03')  # another sender
+    (_, c), = unpack_frames(pack_frames([(10.25, other)]))
+    assert c == other and c.source == 4

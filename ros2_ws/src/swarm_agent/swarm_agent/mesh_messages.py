@@ -19,6 +19,8 @@ Every decoder raises ``MeshMessageError`` (a ValueError) on malformed bytes.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import functools
+import math
 import struct
 
 import numpy as np
@@ -62,18 +64,23 @@ class NeighbourInfo:
     @classmethod
     def decode(cls, data: bytes) -> NeighbourInfo:
         """Unpack; raise MeshMessageError on anything malformed."""
-        if len(data) != _INFO.size:
-            raise MeshMessageError(
-                f'neighbour info must be {_INFO.size} bytes, got {len(data)}')
-        kind, agent_type, flags, mode, x, y, vx, vy, std = _INFO.unpack(data)
-        if kind != MSG_NEIGHBOUR_INFO:
-            raise MeshMessageError(f'not a neighbour info message (kind {kind})')
-        values = np.array([x, y, vx, vy, std])
-        if not np.all(np.isfinite(values)) or std < 0:
-            raise MeshMessageError('neighbour info carries a non-finite position, velocity '
-                                   'or standard deviation')
-        return cls(agent_type, bool(flags & FLAG_BEACON), mode, (x, y), (vx, vy),
-                   bool(flags & FLAG_SETTLED), std)
+        return _decode_info(bytes(data))
+
+
+@functools.lru_cache(maxsize=4096)
+def _decode_info(data: bytes) -> NeighbourInfo:
+    """NeighbourInfo.decode, cached: every neighbour decodes the same heartbeat (a composed
+    process holds them all) and the result is frozen."""
+    if len(data) != _INFO.size:
+        raise MeshMessageError(f'neighbour info must be {_INFO.size} bytes, got {len(data)}')
+    kind, agent_type, flags, mode, x, y, vx, vy, std = _INFO.unpack(data)
+    if kind != MSG_NEIGHBOUR_INFO:
+        raise MeshMessageError(f'not a neighbour info message (kind {kind})')
+    if not all(math.isfinite(v) for v in (x, y, vx, vy, std)) or std < 0:
+        raise MeshMessageError('neighbour info carries a non-finite position, velocity '
+                               'or standard deviation')
+    return NeighbourInfo(agent_type, bool(flags & FLAG_BEACON), mode, (x, y), (vx, vy),
+                         bool(flags & FLAG_SETTLED), std)
 
 
 @dataclass(frozen=True)

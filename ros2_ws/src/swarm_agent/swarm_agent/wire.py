@@ -18,6 +18,7 @@ and counts them, so malformed bytes never reach the agent loop.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import functools
 import struct
 
 from swarm_agent.packet import MAX_PAYLOAD
@@ -71,15 +72,18 @@ def encode_adverts(sender_sequence: int, adverts: list[Advert]) -> list[bytes]:
     return frames
 
 
-def decode_adverts(data: bytes) -> tuple[int, list[Advert]]:
+@functools.lru_cache(maxsize=4096)
+def decode_adverts(data: bytes) -> tuple[int, tuple[Advert, ...]]:
+    """(sender sequence, adverts) of a DSDV frame; cached, as every neighbour decodes the
+    same broadcast (a composed process holds them all)."""
     if len(data) < _ADV_HEAD.size:
         raise WireError(f'advert truncated to {len(data)} bytes')
     seq, count = _ADV_HEAD.unpack_from(data)
     if len(data) != _ADV_HEAD.size + count * _ADV_ENTRY.size:
         raise WireError(f'advert of {count} entries must be '
                         f'{_ADV_HEAD.size + count * _ADV_ENTRY.size} bytes, got {len(data)}')
-    adverts = [Advert(*_ADV_ENTRY.unpack_from(data, _ADV_HEAD.size + i * _ADV_ENTRY.size))
-               for i in range(count)]
+    adverts = tuple(Advert(*_ADV_ENTRY.unpack_from(data, _ADV_HEAD.size + i * _ADV_ENTRY.size))
+                    for i in range(count))
     return seq, adverts
 
 
