@@ -417,7 +417,8 @@ def start_agents(children: Children, args: argparse.Namespace, fleet, fleet_file
     if args.composed and local:
         params = {'fleet_file': str(fleet_file), 'method': args.method, 'seed': args.seed,
                   'control_rate_hz': args.control_rate, 'use_sim_time': True,
-                  'partition_locally': args.decentralized, 'type_counts': type_counts}
+                  'partition_locally': args.decentralized, 'type_counts': type_counts,
+                  'sensor_batch': True}   # the world sends one batch per step (sim_params)
         if len(local) < args.agents:
             params['agent_ids'] = sorted(local)
         children.start('agents', ['-m', 'swarm_agent.composed_node', *ros_args(params)])
@@ -591,7 +592,10 @@ def main(argv: list[str] | None = None) -> int:
     sim_params = {'fleet_file': str(fleet_file), 'shape': args.shape,
                   'real_time_factor': float(args.rtf), 'record_dir': str(out),
                   'gui': args.gui, 'seed': args.seed, 'half_size': args.half_size,
-                  'marker_rate_hz': 1.0 if args.markers else 0.0}
+                  'marker_rate_hz': 1.0 if args.markers else 0.0,
+                  # Composed agents take every robot's imu, ranges and radio deliveries
+                  # in one message per step (swarm_msgs/SensorBatch).
+                  'sensor_batch': bool(args.composed)}
     children.start('sim', ['-m', 'swarm_sim.sim_node', *ros_args(sim_params)])
     mission_params = {'shape': args.shape, 'method': args.method,
                       'fleet_file': str(fleet_file), 'seed': args.seed,

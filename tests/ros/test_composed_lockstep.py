@@ -106,3 +106,59 @@ def test_every_clock_advance_is_answered_by_every_agent(tmp_path):
         container.destroy_node()
         probe.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+def test_a_composed_process_takes_its_agents_inputs_from_one_sensor_batch(tmp_path):
+    """sensor_batch: the world's one message per step reaches each agent's brain."""
+    from swarm_agent.conversions import sensor_batch_to_msg
+    from swarm_agent.mesh_messages import NeighbourInfo
+    from swarm_agent.packet import BROADCAST, Kind, Packet
+    from swarm_agent.wire import encode_heartbeat
+    from swarm_msgs.msg import RangeArray, RangeMeasurement, SensorBatch
+
+    fleet_file = tmp_path / 'fleet.yaml'
+    save_fleet(fleet_file, [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 2, False, 5.0, 0.0),
+                            RobotSpec(2, 3, False, 9.0, 0.0)])
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    executor = make_executor(context=context)
+    container = ComposedAgents(executor, context=context, parameter_overrides=[
+        Parameter('fleet_file', value=str(fleet_file)), Parameter('sensor_batch', value=True)])
+    executor.add_node(container)
+    probe = rclpy.create_node('world', context=context)
+    executor.add_node(probe)
+    batch = probe.create_publisher(SensorBatch, '/swarm/sensor_batch', QoSProfile(**qos.RADIO))
+    info = NeighbourInfo(1, True, 0, (0.5, -0.25), (0.0, 0.0))
+    heartbeat = Packet(0, BROADCAST, Kind.HEARTBEAT, 7, 1, encode_heartbeat(7, info.encode()))
+    agent1, agent2 = container.agents[1], container.agents[2]
+    try:
+        # Nothing per robot: the agents have no imu, ranges or radio/rx subscriptions.
+        topics = {name for name, _ in probe.get_topic_names_and_types()}
+        assert not any(t.endswith(('/imu', '/ranges', '/radio/rx')) for t in topics), topics
+        deadline = time.monotonic() + 10.0
+        while batch.get_subscription_count() == 0 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        before = agent2.brain.localizer.velocity.copy()
+        batch.publish(sensor_batch_to_msg(
+            Time(sec=3), imu_ids=[2], imu_accel=[[2.0, 0.0]], imu_noise_std=0.01,
+            ranges=[RangeArray(receiver=1, ranges=[RangeMeasurement(
+                beacon_id=0, range=4.5, stddev=0.1)])],
+            rx={1: [(3.0, heartbeat)]}))
+        deadline = time.monotonic() + 10.0
+        while 0 not in agent1.brain.neighbours and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert agent1.brain.neighbours[0].info == info          # radio delivery
+        assert agent1.brain._ranges == [(0, 4.5, 0.1)]          # ranges
+        assert 0 not in agent2.brain.neighbours                 # only its receiver's
+        batch.publish(sensor_batch_to_msg(Time(sec=4), imu_ids=[2], imu_accel=[[2.0, 0.0]]))
+        deadline = time.monotonic() + 10.0
+        while (agent2.brain.localizer.velocity == before).all() and \
+                time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert agent2.brain.localizer.velocity[0] > before[0]   # imu integrated
+    finally:
+        executor.shutdown()
+        container.destroy_all()
+        container.destroy_node()
+        probe.destroy_node()
+        rclpy.try_shutdown(context=context)

@@ -86,3 +86,40 @@ def test_one_frame_heard_by_many_is_decoded_once_and_keeps_each_stamp():
     other = Packet(4, BROADCAST, Kind.HEARTBEAT, 41, 1, b'\x01\x02\x03')  # another sender
     (_, c), = unpack_frames(pack_frames([(10.25, other)]))
     assert c == other and c.source == 4
+
+
+def test_a_sensor_batch_carries_each_robots_part_of_a_step():
+    pytest.importorskip('swarm_msgs')
+    from builtin_interfaces.msg import Time
+    import numpy as np
+
+    from swarm_agent.conversions import sensor_batch_from_msg, sensor_batch_to_msg
+    from swarm_msgs.msg import RangeArray, RangeMeasurement
+
+    stamp = Time(sec=12, nanosec=500_000_000)
+    ranges = [RangeArray(receiver=4, ranges=[RangeMeasurement(beacon_id=1, range=3.5,
+                                                              stddev=0.1)])]
+    frames = _frames()
+    msg = sensor_batch_to_msg(stamp, imu_ids=[4, 9], imu_accel=np.array([[0.1, -0.2],
+                                                                         [0.0, 0.3]]),
+                              imu_noise_std=0.01, ranges=ranges,
+                              rx={4: frames[:2], 9: [], 11: frames[2:]})
+    imu, got_ranges, rx = sensor_batch_from_msg(msg)
+    assert imu == [(4, 0.1, -0.2), (9, 0.0, 0.3)] and msg.imu_noise_std == 0.01
+    assert got_ranges[0].receiver == 4 and got_ranges[0].ranges[0].range == 3.5
+    assert rx == {4: frames[:2], 9: [], 11: frames[2:]}
+    empty = sensor_batch_to_msg(stamp)            # nothing due this step
+    assert sensor_batch_from_msg(empty) == ([], [], {})
+    # Arrays that disagree, or a receiver's bytes cut short, are refused, never misread.
+    short = sensor_batch_to_msg(stamp, rx={4: frames})
+    short.rx_sizes = [short.rx_sizes[0] - 1]
+    with pytest.raises(PacketError, match='summing to'):
+        sensor_batch_from_msg(short)
+    cut = sensor_batch_to_msg(stamp, rx={4: frames[:1], 9: frames[1:]})
+    cut.rx_sizes = [cut.rx_sizes[0] - 1, cut.rx_sizes[1] + 1]
+    with pytest.raises(PacketError):
+        sensor_batch_from_msg(cut)
+    lopsided = sensor_batch_to_msg(stamp, imu_ids=[4], imu_accel=[[0.1, 0.2]])
+    lopsided.imu_ay = [0.2, 0.3]
+    with pytest.raises(PacketError, match='1 imu ids but 1 x and 2 y'):
+        sensor_batch_from_msg(lopsided)

@@ -138,13 +138,17 @@ class AgentNode(Node):
 
     def __init__(self, node_name: str = 'agent', namespace: str | None = None,
                  tx_sink: Callable[[Frames], None] | None = None,
-                 own_timers: bool = True, **kwargs) -> None:
+                 own_timers: bool = True, shared_inputs: bool = False, **kwargs) -> None:
         """``tx_sink`` takes the radio frames instead of this node's own batching
         publisher (composed_node: one batch of every agent's frames per period).
         Without ``own_timers`` the node creates no control and introspection timers:
         its owner calls ``on_control``, ``publish_state`` and ``publish_routes`` at the
         node's ``control_rate_hz``, ``state_rate_hz`` and ``routes_rate_hz``
-        (composed_node: one timer of each drives every agent of the process)."""
+        (composed_node: one timer of each drives every agent of the process). With
+        ``shared_inputs`` it subscribes to none of imu, ranges, radio/rx, shape and goals:
+        its owner hands them over (``on_imu_sample``, ``on_range_array``,
+        ``on_radio_frames``, ``on_shape``, ``on_goals``; composed_node with the world's
+        /swarm/sensor_batch)."""
         super().__init__(node_name, namespace=namespace, **kwargs)
         for name, (default, text) in PARAMETERS.items():
             self.declare_parameter(name, default, ParameterDescriptor(description=text))
@@ -201,15 +205,16 @@ class AgentNode(Node):
         self._state = lean_publisher(self, AgentState, 'state', state)
         self._routes = lean_publisher(self, RouteTable, 'routes', state)
 
-        lean_subscription(self, Imu, 'imu', self._on_imu, QoSProfile(**qos.IMU))
         if p['is_beacon']:
             lean_subscription(self, PoseWithCovarianceStamped, 'gps', self._on_gps, sensor)
-        lean_subscription(self, RangeArray, 'ranges', self._on_ranges, sensor)
-        lean_subscription(self, RadioPacketArray, 'radio/rx', self._on_radio, radio)
         if p['external_pose']:
             lean_subscription(self, PoseStamped, 'pose', self._on_pose, sensor)
-        lean_subscription(self, FormationShape, '/swarm/shape', self._on_shape, latched)
-        lean_subscription(self, GoalArray, '/swarm/goals', self._on_goals, latched)
+        if not shared_inputs:
+            lean_subscription(self, Imu, 'imu', self._on_imu, QoSProfile(**qos.IMU))
+            lean_subscription(self, RangeArray, 'ranges', self.on_range_array, sensor)
+            lean_subscription(self, RadioPacketArray, 'radio/rx', self._on_radio, radio)
+            lean_subscription(self, FormationShape, '/swarm/shape', self.on_shape, latched)
+            lean_subscription(self, GoalArray, '/swarm/goals', self.on_goals, latched)
 
         if own_timers:
             self.create_timer(1.0 / p['control_rate_hz'], self.on_control)
@@ -232,9 +237,12 @@ class AgentNode(Node):
         # load, and a ~1 m/s^2 manoeuvre times that jitter random-walks the velocity
         # estimate by centimetres per second at every sample (measured: estimates
         # hundreds of metres off after a minute when integrating over arrival times).
-        stamp = stamp_seconds(msg.header.stamp)
         a = msg.linear_acceleration
-        self.brain.on_imu(stamp if stamp > 0.0 else self._now(), np.array([a.x, a.y]))
+        self.on_imu_sample(stamp_seconds(msg.header.stamp), a.x, a.y)
+
+    def on_imu_sample(self, stamp: float, ax: float, ay: float) -> None:
+        """One IMU sample: map-frame mean acceleration (m/s^2) stamped ``stamp`` (s)."""
+        self.brain.on_imu(stamp if stamp > 0.0 else self._now(), np.array([ax, ay]))
 
     def _on_gps(self, msg: PoseWithCovarianceStamped) -> None:
         pos = msg.pose.pose.position
@@ -246,19 +254,25 @@ class AgentNode(Node):
         self.brain.on_gps(self._now(), np.array([pos.x, pos.y]),
                           self.params['external_pose_std'])
 
-    def _on_ranges(self, msg: RangeArray) -> None:
+    def on_range_array(self, msg: RangeArray) -> None:
+        """TOA ranges to beacon neighbours (swarm_msgs/RangeArray)."""
         self.brain.on_ranges(self._now(),
                              [(r.beacon_id, r.range, r.stddev) for r in msg.ranges])
 
     def _on_radio(self, msg: RadioPacketArray) -> None:
+        self.on_radio_frames(stamp_seconds(msg.header.stamp),
+                             frames_or_log(msg, self.get_logger(), 'radio/rx'))
+
+    def on_radio_frames(self, stamp: float, frames: Frames) -> None:
+        """Frames the radio heard, delivered in a batch stamped ``stamp`` (s)."""
         now = self._now()
-        stamp = stamp_seconds(msg.header.stamp)
         if stamp > 0.0:
             self._radio_lag_max = max(self._radio_lag_max, now - stamp)
-        for _, packet in frames_or_log(msg, self.get_logger(), 'radio/rx'):
+        for _, packet in frames:
             self.brain.on_packet(now, packet)
 
-    def _on_shape(self, msg: FormationShape) -> None:
+    def on_shape(self, msg: FormationShape) -> None:
+        """A new desired shape (swarm_msgs/FormationShape)."""
         try:
             shape = shape_from_msg(msg)
         except ShapeError as exc:
@@ -280,7 +294,8 @@ class AgentNode(Node):
             return
         self.brain.set_goals(result.goals, version)
 
-    def _on_goals(self, msg: GoalArray) -> None:
+    def on_goals(self, msg: GoalArray) -> None:
+        """Goal states from the mission (ignored when partitioning locally)."""
         if not self.params['partition_locally']:
             self.brain.set_goals(goals_from_msg(msg), msg.version)
 

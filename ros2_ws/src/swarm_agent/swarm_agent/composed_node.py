@@ -43,8 +43,10 @@ import yaml
 
 from swarm_agent.agent_node import AgentNode, flush_radio, Frames, make_executor
 from swarm_agent.brain import BrainConfigError
+from swarm_agent.conversions import sensor_batch_from_msg, stamp_seconds
+from swarm_agent.packet import PacketError
 from swarm_mission import qos
-from swarm_msgs.msg import RadioPacketArray
+from swarm_msgs.msg import FormationShape, GoalArray, RadioPacketArray, SensorBatch
 
 SHARED = {
     'method': ('bubble', 'Formation method of every agent'),
@@ -57,6 +59,9 @@ SHARED = {
     'state_rate_hz': (2.0, "Rate of every agent's state topic"),
     'routes_rate_hz': (0.5, "Rate of every agent's routes topic"),
     'type_counts': ('', 'Swarm composition for local partitioning'),
+    'sensor_batch': (False, "Take every agent's imu, ranges and radio deliveries from the "
+                            "world's /swarm/sensor_batch (sim_node sensor_batch) and shape "
+                            'and goals through the container, instead of per-robot topics'),
 }
 
 
@@ -119,6 +124,7 @@ class ComposedAgents(Node):
             ]
             node = AgentNode('agent', namespace=f'/agent_{agent_id}',
                              tx_sink=self._tx_pending.extend, own_timers=False,
+                             shared_inputs=bool(p['sensor_batch']),
                              parameter_overrides=overrides, context=self.context,
                              start_parameter_services=False)
             if self._time_source is not None:
@@ -130,12 +136,42 @@ class ComposedAgents(Node):
                              ('routes_rate_hz', 'publish_routes')):
             self.create_timer(1.0 / p[rate], lambda m=method: self._each(m), clock=timer_clock)
         self.create_subscription(Int32MultiArray, '/swarm/kill', self._on_kill, 10)
-        self.get_logger().info(f'{len(self.agents)} agents composed in one process')
+        if p['sensor_batch']:
+            latched = QoSProfile(**qos.LATCHED)
+            self.create_subscription(SensorBatch, '/swarm/sensor_batch', self._on_batch,
+                                     QoSProfile(**qos.RADIO))
+            self.create_subscription(FormationShape, '/swarm/shape',
+                                     lambda m: self._each('on_shape', m), latched)
+            self.create_subscription(GoalArray, '/swarm/goals',
+                                     lambda m: self._each('on_goals', m), latched)
+        self.get_logger().info(f'{len(self.agents)} agents composed in one process'
+                               + (', inputs from /swarm/sensor_batch' if p['sensor_batch']
+                                  else ''))
 
-    def _each(self, method: str) -> None:
-        """Call ``method`` of every agent node (the container's timers)."""
-        for node in self.agents.values():
-            getattr(node, method)()
+    def _each(self, method: str, *args) -> None:
+        """Call ``method`` of every agent node (the container's timers and topics)."""
+        for node in list(self.agents.values()):
+            getattr(node, method)(*args)
+
+    def _on_batch(self, msg: SensorBatch) -> None:
+        """Hand each agent of this process its part of the world's step."""
+        try:
+            imu, ranges, rx = sensor_batch_from_msg(msg)
+        except PacketError as exc:
+            self.get_logger().error(f'dropped a corrupt /swarm/sensor_batch: {exc}',
+                                    throttle_duration_sec=10.0)
+            return
+        stamp = stamp_seconds(msg.header.stamp)
+        agents = self.agents
+        for agent_id, ax, ay in imu:
+            if agent_id in agents:
+                agents[agent_id].on_imu_sample(stamp, ax, ay)
+        for array in ranges:
+            if array.receiver in agents:
+                agents[array.receiver].on_range_array(array)
+        for agent_id, frames in rx.items():
+            if agent_id in agents:
+                agents[agent_id].on_radio_frames(stamp, frames)
 
     def _on_kill(self, msg: Int32MultiArray) -> None:
         for agent_id in msg.data:

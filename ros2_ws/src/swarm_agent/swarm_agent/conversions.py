@@ -13,7 +13,15 @@ import numpy as np
 
 from swarm_agent.brain import Snapshot
 from swarm_agent.packet import pack_frames, Packet, PacketError, unpack_frames
-from swarm_msgs.msg import AgentState, CostReport, RadioPacketArray, RouteEntry, RouteTable
+from swarm_msgs.msg import (
+    AgentState,
+    CostReport,
+    RadioPacketArray,
+    RangeArray,
+    RouteEntry,
+    RouteTable,
+    SensorBatch,
+)
 
 
 def stamp_seconds(stamp: Time) -> float:
@@ -46,6 +54,50 @@ def frames_or_log(msg: RadioPacketArray, logger, topic: str) -> list[tuple[float
         logger.error(f'dropped a corrupt radio batch on {topic}: {exc}',
                      throttle_duration_sec=10.0)
         return []
+
+
+def sensor_batch_to_msg(stamp: Time, *, imu_ids=(), imu_accel=None, imu_noise_std: float = 0.0,
+                        ranges: Iterable[RangeArray] = (),
+                        rx: dict[int, list[tuple[float, Packet]]] | None = None) -> SensorBatch:
+    """One step's sensor data and radio deliveries of many robots -> swarm_msgs/SensorBatch.
+
+    ``imu_accel`` (len(imu_ids), 2) map-frame accelerations; ``rx`` receiver id ->
+    ``(stamp, packet)`` frames it heard.
+    """
+    msg = SensorBatch()
+    msg.header.stamp = stamp
+    if len(imu_ids):
+        accel = np.asarray(imu_accel, dtype=float).reshape(len(imu_ids), 2)
+        msg.imu_ids = array('H', [int(i) for i in imu_ids])
+        msg.imu_ax = array('d', accel[:, 0].tolist())
+        msg.imu_ay = array('d', accel[:, 1].tolist())
+        msg.imu_noise_std = float(imu_noise_std)
+    msg.ranges = list(ranges)
+    if rx:
+        packed = [(int(receiver), pack_frames(frames)) for receiver, frames in rx.items()]
+        msg.rx_ids = array('H', [r for r, _ in packed])
+        msg.rx_sizes = array('I', [len(b) for _, b in packed])
+        msg.frames = array('B', b''.join(b for _, b in packed))
+    return msg
+
+
+def sensor_batch_from_msg(msg: SensorBatch) -> tuple[list[tuple[int, float, float]],
+                                                     list[RangeArray],
+                                                     dict[int, list[tuple[float, Packet]]]]:
+    """swarm_msgs/SensorBatch -> (imu samples (id, ax, ay), range arrays, rx frames by
+    receiver). Raises PacketError when the arrays disagree or a frame is corrupt."""
+    if not len(msg.imu_ax) == len(msg.imu_ay) == len(msg.imu_ids):
+        raise PacketError(f'{len(msg.imu_ids)} imu ids but {len(msg.imu_ax)} x and '
+                          f'{len(msg.imu_ay)} y accelerations')
+    imu = list(zip((int(i) for i in msg.imu_ids), msg.imu_ax, msg.imu_ay))
+    if len(msg.rx_ids) != len(msg.rx_sizes) or sum(msg.rx_sizes) != len(msg.frames):
+        raise PacketError(f'{len(msg.rx_ids)} receivers with {len(msg.rx_sizes)} sizes '
+                          f'summing to {sum(msg.rx_sizes)} bytes, {len(msg.frames)} sent')
+    data, offset, rx = bytes(msg.frames), 0, {}
+    for receiver, size in zip(msg.rx_ids, msg.rx_sizes):
+        rx[int(receiver)] = unpack_frames(data[offset:offset + size])
+        offset += size
+    return imu, list(msg.ranges), rx
 
 
 def snapshot_to_state(snap: Snapshot, stamp: Time | None = None,

@@ -69,7 +69,12 @@ from std_msgs.msg import Float64MultiArray, Int32MultiArray
 from visualization_msgs.msg import MarkerArray
 
 from swarm_agent.agent_node import lean_publisher, lean_subscription
-from swarm_agent.conversions import frames_or_log, frames_to_msg, stamp_seconds
+from swarm_agent.conversions import (
+    frames_or_log,
+    frames_to_msg,
+    sensor_batch_to_msg,
+    stamp_seconds,
+)
 from swarm_agent.packet import Packet
 from swarm_mission import qos
 from swarm_mission.conversions import goals_from_msg, shape_from_msg
@@ -83,6 +88,7 @@ from swarm_msgs.msg import (
     RadioPacketArray,
     RangeArray,
     RangeMeasurement,
+    SensorBatch,
     SwarmTruth,
 )
 from swarm_sim.fleet import FleetError, load_fleet
@@ -102,6 +108,9 @@ PARAMETERS = {
     'gps_std': (2.0, 'GPS noise per axis (m), thesis 4.2'),
     'range_rate_hz': (1.0, 'TOA ranging rate per simulated second'),
     'radio_rate_hz': (20.0, 'Radio delivery batches per simulated second, per robot'),
+    'sensor_batch': (False, 'Publish imu, ranges and radio deliveries of every robot in one '
+                            '/swarm/sensor_batch per step (for composed agents) instead of '
+                            'the per-robot topics'),
     'truth_rate_hz': (2.0, 'Ground-truth publication rate (sim time)'),
     'marker_rate_hz': (1.0, 'RViz marker rate on /swarm/markers (sim time); 0: none'),
     'command_timeout_s': (0.5, 'Force commands older than this are dropped to zero'),
@@ -238,12 +247,18 @@ class SimNode(Node):
         self.imu_pubs, self.gps_pubs, self.range_pubs, self.rx_pubs = {}, {}, {}, {}
         # Per-robot topics without default QoS event handlers (agent_node.lean_publisher):
         # with them, 50 robots made a wait set of about 750 entities.
+        # With sensor_batch, imu, ranges and radio/rx of every robot travel in one
+        # /swarm/sensor_batch message per step instead (composed agents).
+        self.batch_pub = (self.create_publisher(SensorBatch, '/swarm/sensor_batch', radio)
+                          if p['sensor_batch'] else None)
         for r in self.fleet:
             ns = f'/agent_{r.id}'
-            self.imu_pubs[r.id] = lean_publisher(self, Imu, f'{ns}/imu', imu)
-            self.range_pubs[r.id] = lean_publisher(self, RangeArray, f'{ns}/ranges', sensor)
-            self.rx_pubs[r.id] = lean_publisher(self, RadioPacketArray, f'{ns}/radio/rx',
-                                                radio)
+            if self.batch_pub is None:
+                self.imu_pubs[r.id] = lean_publisher(self, Imu, f'{ns}/imu', imu)
+                self.range_pubs[r.id] = lean_publisher(self, RangeArray, f'{ns}/ranges',
+                                                       sensor)
+                self.rx_pubs[r.id] = lean_publisher(self, RadioPacketArray,
+                                                    f'{ns}/radio/rx', radio)
             if r.is_beacon:
                 self.gps_pubs[r.id] = lean_publisher(self, PoseWithCovarianceStamped,
                                                      f'{ns}/gps', sensor)
@@ -452,12 +467,16 @@ class SimNode(Node):
     def _publish_outputs(self) -> None:
         stamp = self._stamp()
         self._publish_clock(stamp)
+        batch = {} if self.batch_pub is not None else None   # sensor_batch contents
         for receiver, packet in self.medium.deliver(self.t):
-            if receiver in self.rx_pubs:
+            if receiver in self.index:
                 self._rx_batches.setdefault(receiver, []).append((self.t, packet))
         if self._due_now('radio', 'radio_rate_hz'):
-            for receiver, frames in self._rx_batches.items():
-                self.rx_pubs[receiver].publish(frames_to_msg(frames, stamp))
+            if batch is not None:
+                batch['rx'] = self._rx_batches
+            else:
+                for receiver, frames in self._rx_batches.items():
+                    self.rx_pubs[receiver].publish(frames_to_msg(frames, stamp))
             self._rx_batches = {}
         pos = self.backend.positions()
         if self._due_now('imu', 'imu_rate_hz'):
@@ -469,7 +488,12 @@ class SimNode(Node):
             mean_accel = (vel - self._imu_v) / interval
             self._imu_v, self._imu_t = vel.copy(), self.t
             accel = self.imu.measure(mean_accel)
-            for i in np.flatnonzero(self.alive):
+            living = np.flatnonzero(self.alive)
+            if batch is not None:
+                batch.update(imu_ids=[self.ids[i] for i in living], imu_accel=accel[living],
+                             imu_noise_std=self.imu.noise_std)
+                living = []
+            for i in living:
                 msg = Imu()
                 msg.header.stamp = stamp
                 msg.header.frame_id = 'map'
@@ -489,13 +513,21 @@ class SimNode(Node):
                 self.gps_pubs[self.ids[i]].publish(msg)
         if self._due_now('range', 'range_rate_hz'):
             beacons = [self.ids[i] for i in np.flatnonzero(self.alive & self.is_beacon)]
+            ranges = []
             for i in np.flatnonzero(self.alive & ~self.is_beacon):
                 msg = RangeArray()
                 msg.header.stamp = stamp
                 msg.receiver = self.ids[i]
                 msg.ranges = [RangeMeasurement(beacon_id=b, range=r, stddev=s)
                               for b, r, s in self.medium.toa_ranges(self.ids[i], beacons)]
-                self.range_pubs[self.ids[i]].publish(msg)
+                ranges.append(msg)
+            if batch is not None:
+                batch['ranges'] = ranges
+            else:
+                for msg in ranges:
+                    self.range_pubs[msg.receiver].publish(msg)
+        if batch:
+            self.batch_pub.publish(sensor_batch_to_msg(stamp, **batch))
         if self._due_now('truth', 'truth_rate_hz'):
             self._publish_truth(stamp, pos)
         if self.params['marker_rate_hz'] > 0 and self._due_now('marker', 'marker_rate_hz'):
