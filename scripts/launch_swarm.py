@@ -595,7 +595,8 @@ def main(argv: list[str] | None = None) -> int:
                   'marker_rate_hz': 1.0 if args.markers else 0.0,
                   # Composed agents take every robot's imu, ranges and radio deliveries
                   # in one message per step (swarm_msgs/SensorBatch).
-                  'sensor_batch': bool(args.composed)}
+                  'sensor_batch': bool(args.composed),
+                  'truth_subscribers': 1}   # the monitor records from t = 0
     children.start('sim', ['-m', 'swarm_sim.sim_node', *ros_args(sim_params)])
     mission_params = {'shape': args.shape, 'method': args.method,
                       'fleet_file': str(fleet_file), 'seed': args.seed,
