@@ -76,18 +76,6 @@ def test_a_corrupt_batch_is_dropped_with_one_line_naming_the_topic():
     assert frames_or_log(good, logger, '/radio/tx') == _frames()
 
 
-def test_one_frame_heard_by_many_is_decoded_once_and_keeps_each_stamp():
-    # A broadcast reaches every neighbour; in a composed process the receivers share the
-    # frozen Packet (decoded once) but each keeps its own delivery stamp.
-    frame = Packet(3, BROADCAST, Kind.HEARTBEAT, 41, 1, b'\x01\x02\x03')
-    (t1, a), = unpack_frames(pack_frames([(10.25, frame)]))
-    (t2, b), = unpack_frames(pack_frames([(10.75, frame)]))
-    assert (t1, t2) == (10.25, 10.75) and a == b == frame and a is b
-    other = Packet(4, BROADCAST, Kind.HEARTBEAT, 41, 1, b'\x01\x02\x03')  # another sender
-    (_, c), = unpack_frames(pack_frames([(10.25, other)]))
-    assert c == other and c.source == 4
-
-
 def test_a_sensor_batch_carries_each_robots_part_of_a_step():
     pytest.importorskip('swarm_msgs')
     from builtin_interfaces.msg import Time
@@ -111,13 +99,20 @@ def test_a_sensor_batch_carries_each_robots_part_of_a_step():
     empty = sensor_batch_to_msg(stamp)            # nothing due this step
     assert sensor_batch_from_msg(empty) == ([], [], {})
     # Arrays that disagree, or a receiver's bytes cut short, are refused, never misread.
+    shared = sensor_batch_to_msg(stamp, rx={4: frames, 9: frames[1:], 11: frames[:1]})
+    assert len(shared.rx_frames) == 6 and len(shared.frames) == len(pack_frames(frames))
+    assert sensor_batch_from_msg(shared)[2] == {4: frames, 9: frames[1:], 11: frames[:1]}
     short = sensor_batch_to_msg(stamp, rx={4: frames})
-    short.rx_sizes = [short.rx_sizes[0] - 1]
-    with pytest.raises(PacketError, match='summing to'):
+    short.rx_counts = [short.rx_counts[0] + 1]
+    with pytest.raises(PacketError, match='summing to 4 frames, 3 indices'):
         sensor_batch_from_msg(short)
-    cut = sensor_batch_to_msg(stamp, rx={4: frames[:1], 9: frames[1:]})
-    cut.rx_sizes = [cut.rx_sizes[0] - 1, cut.rx_sizes[1] + 1]
-    with pytest.raises(PacketError):
+    wild = sensor_batch_to_msg(stamp, rx={4: frames})
+    wild.rx_frames = [0, 1, 3]
+    with pytest.raises(PacketError, match='frame index 3 beyond the 3 frames'):
+        sensor_batch_from_msg(wild)
+    cut = sensor_batch_to_msg(stamp, rx={4: frames})
+    cut.frames = cut.frames[:-1]
+    with pytest.raises(PacketError, match='truncated frame header'):
         sensor_batch_from_msg(cut)
     lopsided = sensor_batch_to_msg(stamp, imu_ids=[4], imu_accel=[[0.1, 0.2]])
     lopsided.imu_ay = [0.2, 0.3]

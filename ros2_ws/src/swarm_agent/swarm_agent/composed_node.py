@@ -101,9 +101,9 @@ class ComposedAgents(Node):
             if not p[rate] > 0.0:
                 raise BrainConfigError(f'parameter {rate} must be above 0 Hz, got {p[rate]}')
         self._tx_pending: Frames = []
-        tx = self.create_publisher(RadioPacketArray, '/radio/tx', QoSProfile(**qos.RADIO))
-        self.create_timer(1.0 / p['radio_tx_hz'],
-                          lambda: flush_radio(tx, self._tx_pending, self.get_clock()))
+        self._tx = self.create_publisher(RadioPacketArray, '/radio/tx', QoSProfile(**qos.RADIO))
+        self._tx_period = 1.0 / p['radio_tx_hz']
+        self._tx_due = -float('inf')
         for robot in robots:
             agent_id = int(robot['id'])
             overrides = [
@@ -131,8 +131,9 @@ class ComposedAgents(Node):
                 self._time_source.attach_clock(node.get_clock())
             self.agents[agent_id] = node
             executor.add_node(node)
-        for rate, method in (('control_rate_hz', 'on_control'),
-                             ('state_rate_hz', 'publish_state'),
+        self._timer_clock = timer_clock
+        self.create_timer(1.0 / p['control_rate_hz'], self._on_control, clock=timer_clock)
+        for rate, method in (('state_rate_hz', 'publish_state'),
                              ('routes_rate_hz', 'publish_routes')):
             self.create_timer(1.0 / p[rate], lambda m=method: self._each(m), clock=timer_clock)
         self.create_subscription(Int32MultiArray, '/swarm/kill', self._on_kill, 10)
@@ -152,6 +153,20 @@ class ComposedAgents(Node):
         """Call ``method`` of every agent node (the container's timers and topics)."""
         for node in list(self.agents.values()):
             getattr(node, method)(*args)
+
+    def _on_control(self) -> None:
+        """Step every agent's inner loop, then send the radio frames they produced.
+
+        In the same callback (as a per-process agent does in its control loop): frames
+        flushed by a timer of their own left a tick after the commands of their tick,
+        and a world that steps as soon as every command is in delivered them a tick late,
+        once per hop of a flood.
+        """
+        self._each('on_control')
+        t = self._timer_clock.now().nanoseconds * 1e-9
+        if t >= self._tx_due:
+            self._tx_due = t + self._tx_period
+            flush_radio(self._tx, self._tx_pending, self._timer_clock)
 
     def _on_batch(self, msg: SensorBatch) -> None:
         """Hand each agent of this process its part of the world's step."""

@@ -62,7 +62,8 @@ def sensor_batch_to_msg(stamp: Time, *, imu_ids=(), imu_accel=None, imu_noise_st
     """One step's sensor data and radio deliveries of many robots -> swarm_msgs/SensorBatch.
 
     ``imu_accel`` (len(imu_ids), 2) map-frame accelerations; ``rx`` receiver id ->
-    ``(stamp, packet)`` frames it heard.
+    ``(stamp, packet)`` frames it heard. A frame heard by several receivers (the same
+    Packet object, as the medium delivers a broadcast) is packed once.
     """
     msg = SensorBatch()
     msg.header.stamp = stamp
@@ -74,10 +75,20 @@ def sensor_batch_to_msg(stamp: Time, *, imu_ids=(), imu_accel=None, imu_noise_st
         msg.imu_noise_std = float(imu_noise_std)
     msg.ranges = list(ranges)
     if rx:
-        packed = [(int(receiver), pack_frames(frames)) for receiver, frames in rx.items()]
-        msg.rx_ids = array('H', [r for r, _ in packed])
-        msg.rx_sizes = array('I', [len(b) for _, b in packed])
-        msg.frames = array('B', b''.join(b for _, b in packed))
+        index: dict[int, int] = {}
+        distinct: list[tuple[float, Packet]] = []
+        refs = array('I')
+        for frames in rx.values():
+            for stamp_s, packet in frames:
+                k = index.get(id(packet))
+                if k is None:
+                    k = index[id(packet)] = len(distinct)
+                    distinct.append((stamp_s, packet))
+                refs.append(k)
+        msg.rx_ids = array('H', [int(r) for r in rx])
+        msg.rx_counts = array('I', [len(frames) for frames in rx.values()])
+        msg.rx_frames = refs
+        msg.frames = array('B', pack_frames(distinct))
     return msg
 
 
@@ -90,13 +101,18 @@ def sensor_batch_from_msg(msg: SensorBatch) -> tuple[list[tuple[int, float, floa
         raise PacketError(f'{len(msg.imu_ids)} imu ids but {len(msg.imu_ax)} x and '
                           f'{len(msg.imu_ay)} y accelerations')
     imu = list(zip((int(i) for i in msg.imu_ids), msg.imu_ax, msg.imu_ay))
-    if len(msg.rx_ids) != len(msg.rx_sizes) or sum(msg.rx_sizes) != len(msg.frames):
-        raise PacketError(f'{len(msg.rx_ids)} receivers with {len(msg.rx_sizes)} sizes '
-                          f'summing to {sum(msg.rx_sizes)} bytes, {len(msg.frames)} sent')
-    data, offset, rx = bytes(msg.frames), 0, {}
-    for receiver, size in zip(msg.rx_ids, msg.rx_sizes):
-        rx[int(receiver)] = unpack_frames(data[offset:offset + size])
-        offset += size
+    if len(msg.rx_ids) != len(msg.rx_counts) or sum(msg.rx_counts) != len(msg.rx_frames):
+        raise PacketError(f'{len(msg.rx_ids)} receivers with {len(msg.rx_counts)} counts '
+                          f'summing to {sum(msg.rx_counts)} frames, {len(msg.rx_frames)} '
+                          'indices sent')
+    distinct = unpack_frames(msg.frames)
+    if len(msg.rx_frames) and max(msg.rx_frames) >= len(distinct):
+        raise PacketError(f'frame index {max(msg.rx_frames)} beyond the {len(distinct)} '
+                          'frames sent')
+    refs, offset, rx = list(msg.rx_frames), 0, {}
+    for receiver, count in zip(msg.rx_ids, msg.rx_counts):
+        rx[int(receiver)] = [distinct[k] for k in refs[offset:offset + count]]
+        offset += count
     return imu, list(msg.ranges), rx
 
 

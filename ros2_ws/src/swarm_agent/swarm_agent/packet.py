@@ -65,14 +65,6 @@ def pack_frames(frames: Iterable[tuple[float, Packet]]) -> bytes:
     return bytes(out)
 
 
-# Frames already decoded in this process, by their bytes minus the stamp. A broadcast
-# reaches every neighbour: in a composed process the same frame arrives once per
-# receiver (py-spy, 50 composed agents: decoding frames into Packets was 15 % of the
-# process). Packets are frozen, so receivers can share one. Bounded: cleared when full.
-_DECODED: dict[tuple[bytes, bytes], Packet] = {}
-_DECODED_MAX = 8192
-
-
 def unpack_frames(data: bytes) -> list[tuple[float, Packet]]:
     """The bytes of RadioPacketArray.frames -> ``(stamp, packet)`` pairs.
 
@@ -90,12 +82,7 @@ def unpack_frames(data: bytes) -> list[tuple[float, Packet]]:
         if end - offset < length:
             raise PacketError(f'frame at byte {offset - _FRAME.size} announces {length} '
                               f'payload bytes, {end - offset} left')
-        key = (data[offset - _FRAME.size:offset - 9], data[offset:offset + length])
-        packet = _DECODED.get(key)
-        if packet is None:
-            if len(_DECODED) >= _DECODED_MAX:
-                _DECODED.clear()
-            packet = _DECODED[key] = Packet(source, destination, kind, sequence, ttl, key[1])
-        frames.append((stamp, packet))
+        frames.append((stamp, Packet(source, destination, kind, sequence, ttl,
+                                     data[offset:offset + length])))
         offset += length
     return frames

@@ -286,6 +286,7 @@ class SimNode(Node):
         self._wall0 = time.monotonic()
         self._sim0 = 0.0
         self._free_running = p['real_time_factor'] <= 0.0
+        self._step_now = self.create_guard_condition(self._on_tick)
         self._observed = p['truth_subscribers'] <= 0
         self.create_timer(1.0 / p['clock_rate_hz'], self._on_tick)
         self.get_logger().info(
@@ -318,16 +319,26 @@ class SimNode(Node):
         self.force_stamp[i] = stamp_seconds(stamp)
         self.force_wall[i] = time.monotonic()
         # As fast as possible and paced by the agents: step as soon as the last of them
-        # has answered, not at the next clock_rate_hz tick (on 2 cores the ticks, not
-        # the agents, held 12 agents at 5x real time).
-        if (self._free_running and self.params['max_agent_lag_s'] > 0
-                and self._steps_agents_allow() >= STEPS_PER_TICK):
-            self._on_tick()
+        # has answered the current time, not at the next clock_rate_hz tick (on 2 cores
+        # the ticks, not the agents, held 12 agents at 5x real time). Through a guard
+        # condition, so the step runs after the callbacks of this wait: a radio batch
+        # sent with the commands must be on the air before the step delivers (stepping
+        # from this callback delivered it a tick late, once per hop of a flood, and 50
+        # agents' consensus rounds agreed 0.90 instead of 0.99). Only once every agent
+        # has caught up: stepping whenever max_agent_lag_s allowed was no faster.
+        lag = self.params['max_agent_lag_s']
+        if (self._free_running and lag > 0
+                and self._steps_agents_allow() >= int(lag / self.dt + 1e-9)):
+            self._step_now.trigger()
 
     def _on_tx(self, msg: RadioPacketArray) -> None:
-        for _, packet in frames_or_log(msg, self.get_logger(), '/radio/tx'):
+        # A frame goes on the air when its agent sent it (its stamp, on the agent's sim
+        # clock), not when its batch reached the world: the world may be up to
+        # max_agent_lag_s ahead, and that wait is not radio latency.
+        for stamp, packet in frames_or_log(msg, self.get_logger(), '/radio/tx'):
             if packet.source in self.index:
-                self.medium.transmit(self.t, packet)
+                sent = stamp if 0.0 < stamp < self.t else self.t
+                self.medium.transmit(sent, packet)
 
     def _known_robots(self, msg: Int32MultiArray, topic: str) -> list[int]:
         """Fleet indices of the living robots a fault names; the others logged."""
