@@ -534,7 +534,8 @@ def bench_ros(sizes: Sequence[int], duration_s: float, timeout_s: float,
                             'peak_rss_mb': (m.get('peak_rss_bytes') or 0) / 2 ** 20,
                             'wall_seconds': m.get('wall_seconds'),
                             'outcome': m.get('outcome'),
-                            'assignment_agreement': m.get('assignment_agreement')})
+                            'assignment_agreement': m.get('assignment_agreement'),
+                            'round_agreement': m.get('round_agreement')})
             rows.append(row)
             log(f'    -> rtf {fmt_num(row.get("real_time_factor"))}, cores '
                 f'{fmt_num(row.get("cpu_cores_used"))}, peak '

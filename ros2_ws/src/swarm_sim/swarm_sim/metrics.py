@@ -141,7 +141,11 @@ def belief_metrics(record: Mapping[str, np.ndarray], types: np.ndarray,
     ``record`` holds (T, N) arrays ``estimates`` (T, N, 2), ``positions``, ``alive``,
     ``modes``, ``digests`` and ``goal_ids``. Agents of one type that used the same cost
     rows hold the same digest; ``assignment_agreement`` is the mean share of assigned
-    NORMAL agents whose digest is their type's most common one.
+    NORMAL agents whose digest is their type's most common one, sample by sample. With
+    ``rounds`` (the consensus round of each digest; the ROS monitor records them),
+    ``round_agreement`` is the share of agents, over every (type, round), whose digest
+    is the round's most common one: the same question without the observation lag of
+    states sampled while a round closes.
     """
     types = np.asarray(types)
     err = np.linalg.norm(record['estimates'] - record['positions'], axis=2)
@@ -153,6 +157,14 @@ def belief_metrics(record: Mapping[str, np.ndarray], types: np.ndarray,
             d = digests[alive & (modes == 0) & (digests != 0) & (types == t)]
             if len(d):
                 agree.append(float(np.mean(d == _most_common(d))))
+    rounds: dict[tuple[int, int], dict[int, int]] = {}
+    if 'rounds' in record:
+        for digests, alive, modes, rnd in zip(record['digests'], record['alive'],
+                                              record['modes'], record['rounds']):
+            for i in np.flatnonzero(alive & (modes == 0) & (digests != 0)):
+                rounds.setdefault((int(types[i]), int(rnd[i])), {})[int(i)] = int(digests[i])
+    agreeing = sum(max(np.unique(list(d.values()), return_counts=True)[1])
+                   for d in rounds.values())
     final_goals = record['goal_ids'][-1][record['alive'][-1]]
     assigned = final_goals[final_goals >= 0]
     finite = np.isfinite(loc)
@@ -161,6 +173,8 @@ def belief_metrics(record: Mapping[str, np.ndarray], types: np.ndarray,
         'rms_localization_error': float(np.sqrt(np.nanmean(loc ** 2)))
         if finite.any() else float('nan'),
         'assignment_agreement': float(np.mean(agree)) if agree else float('nan'),
+        'round_agreement': (float(agreeing / sum(len(d) for d in rounds.values()))
+                            if rounds else float('nan')),
         'duplicate_goal_claims': int(len(assigned) - len(np.unique(assigned))),
         'final_modes_normal': float(np.mean(record['modes'][-1][record['alive'][-1]] == 0)),
     }
