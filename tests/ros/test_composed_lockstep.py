@@ -114,7 +114,7 @@ def test_a_composed_process_takes_its_agents_inputs_from_one_sensor_batch(tmp_pa
     from swarm_agent.mesh_messages import NeighbourInfo
     from swarm_agent.packet import BROADCAST, Kind, Packet
     from swarm_agent.wire import encode_heartbeat
-    from swarm_msgs.msg import RangeArray, RangeMeasurement, SensorBatch
+    from swarm_msgs.msg import ForceBatch, RangeArray, RangeMeasurement, SensorBatch
 
     fleet_file = tmp_path / 'fleet.yaml'
     save_fleet(fleet_file, [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 2, False, 5.0, 0.0),
@@ -128,13 +128,25 @@ def test_a_composed_process_takes_its_agents_inputs_from_one_sensor_batch(tmp_pa
     probe = rclpy.create_node('world', context=context)
     executor.add_node(probe)
     batch = probe.create_publisher(SensorBatch, '/swarm/sensor_batch', QoSProfile(**qos.RADIO))
+    commands = []
+    probe.create_subscription(ForceBatch, '/swarm/cmd_batch', commands.append,
+                              QoSProfile(**qos.COMMAND_BATCH))
     info = NeighbourInfo(1, True, 0, (0.5, -0.25), (0.0, 0.0))
     heartbeat = Packet(0, BROADCAST, Kind.HEARTBEAT, 7, 1, encode_heartbeat(7, info.encode()))
     agent1, agent2 = container.agents[1], container.agents[2]
     try:
-        # Nothing per robot: the agents have no imu, ranges or radio/rx subscriptions.
+        # Nothing per robot: the agents have no imu, ranges or radio/rx subscriptions and
+        # their commands leave in batches (the first one holds every agent's).
         topics = {name for name, _ in probe.get_topic_names_and_types()}
         assert not any(t.endswith(('/imu', '/ranges', '/radio/rx')) for t in topics), topics
+        deadline = time.monotonic() + 10.0
+        while not commands and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        first = commands[0]
+        assert sorted(first.ids) == [0, 1, 2]
+        assert len(first.fx) == len(first.fy) == len(first.stamps) == 3
+        assert not any(t.endswith('/cmd_force') for t in {
+            name for name, _ in probe.get_topic_names_and_types()})
         deadline = time.monotonic() + 10.0
         while batch.get_subscription_count() == 0 and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)

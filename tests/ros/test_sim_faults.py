@@ -176,3 +176,44 @@ def test_radio_kill_and_obstacle_move_on_command_bad_commands_ignored(tmp_path):
         sim.destroy_node()
         probe.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+def test_the_world_takes_a_composed_process_commands_in_one_batch(tmp_path):
+    """sensor_batch: forces arrive as swarm_msgs/ForceBatch; a malformed one is dropped."""
+    from rclpy.qos import QoSProfile
+
+    from swarm_mission import qos
+    from swarm_msgs.msg import ForceBatch
+
+    fleet_file = tmp_path / 'fleet.yaml'
+    save_fleet(fleet_file, [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 2, True, 6.0, 0.0)])
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    executor = SingleThreadedExecutor(context=context)
+    sim = SimNode(context=context, parameter_overrides=[
+        Parameter('fleet_file', value=str(fleet_file)), Parameter('backend', value='pointmass'),
+        Parameter('real_time_factor', value=0.0), Parameter('max_agent_lag_s', value=0.2),
+        Parameter('sensor_batch', value=True), Parameter('half_size', value=20.0)])
+    probe = rclpy.create_node('composed_probe', context=context)
+    pub = probe.create_publisher(ForceBatch, '/swarm/cmd_batch', QoSProfile(**qos.COMMAND_BATCH))
+    executor.add_node(sim)
+    executor.add_node(probe)
+    try:
+        topics = {name for name, _ in probe.get_topic_names_and_types()}
+        assert not any(t.endswith('/cmd_force') for t in topics), topics
+        pub.publish(ForceBatch(ids=[0, 1], fx=[1.0, 0.0], fy=[0.0, -2.0], stamps=[0.0, 0.0]))
+        assert _until(executor, lambda: sim.forces[1, 1] == -2.0)
+        assert sim.forces[0].tolist() == [1.0, 0.0] and sim.force_stamp.tolist() == [0.0, 0.0]
+        # Both answered t = 0: the world steps (0.2 s ahead at most) and waits again.
+        assert _until(executor, lambda: sim.t >= 0.2 - 1e-9)
+        assert sim.t <= 0.2 + 1e-9
+        pub.publish(ForceBatch(ids=[0, 1], fx=[5.0], fy=[0.0, 0.0], stamps=[0.2, 0.2]))
+        pub.publish(ForceBatch(ids=[0], fx=[0.5], fy=[0.5], stamps=[0.2]))
+        assert _until(executor, lambda: sim.forces[0, 0] == 0.5)
+        assert sim.forces[1].tolist() == [0.0, -2.0]       # the malformed batch was dropped
+    finally:
+        executor.shutdown()
+        sim.close()
+        sim.destroy_node()
+        probe.destroy_node()
+        rclpy.try_shutdown(context=context)

@@ -138,7 +138,9 @@ class AgentNode(Node):
 
     def __init__(self, node_name: str = 'agent', namespace: str | None = None,
                  tx_sink: Callable[[Frames], None] | None = None,
-                 own_timers: bool = True, shared_inputs: bool = False, **kwargs) -> None:
+                 own_timers: bool = True, shared_inputs: bool = False,
+                 command_sink: Callable[[int, float, float, float], None] | None = None,
+                 **kwargs) -> None:
         """``tx_sink`` takes the radio frames instead of this node's own batching
         publisher (composed_node: one batch of every agent's frames per period).
         Without ``own_timers`` the node creates no control and introspection timers:
@@ -148,7 +150,8 @@ class AgentNode(Node):
         ``shared_inputs`` it subscribes to none of imu, ranges, radio/rx, shape and goals:
         its owner hands them over (``on_imu_sample``, ``on_range_array``,
         ``on_radio_frames``, ``on_shape``, ``on_goals``; composed_node with the world's
-        /swarm/sensor_batch)."""
+        /swarm/sensor_batch). ``command_sink(agent id, stamp s, fx, fy)`` takes the force
+        commands instead of the cmd_force topic (composed_node: one ForceBatch per step)."""
         super().__init__(node_name, namespace=namespace, **kwargs)
         for name, (default, text) in PARAMETERS.items():
             self.declare_parameter(name, default, ParameterDescriptor(description=text))
@@ -186,6 +189,7 @@ class AgentNode(Node):
         # executor takes (one message per subscription per wait): measured, half of
         # the frames were lost in DDS and the assignment consensus broke (agreement
         # 0.18 on the 50-agent demo).
+        self._command_sink = command_sink
         self._tx_pending: Frames = []
         if tx_sink is None:
             tx = lean_publisher(self, RadioPacketArray, '/radio/tx', radio)
@@ -199,8 +203,9 @@ class AgentNode(Node):
         self._tx_due = -math.inf
         # Per-robot topics without rclpy's default QoS event handlers: see
         # ``lean_publisher`` (they made most of a composed process's wait set).
-        self._cmd_force = lean_publisher(self, WrenchStamped, 'cmd_force',
-                                         QoSProfile(**qos.COMMAND))
+        self._cmd_force = (lean_publisher(self, WrenchStamped, 'cmd_force',
+                                          QoSProfile(**qos.COMMAND))
+                           if command_sink is None else None)
         self._cmd_vel = lean_publisher(self, Twist, 'cmd_vel', sensor)
         self._state = lean_publisher(self, AgentState, 'state', state)
         self._routes = lean_publisher(self, RouteTable, 'routes', state)
@@ -318,11 +323,14 @@ class AgentNode(Node):
         # its clock for it.)
         if force != self._last_force or t - self._last_force_t >= self._keepalive_s - 5e-7:
             self._last_force, self._last_force_t = force, t
-            wrench = WrenchStamped()
-            wrench.header.stamp = now.to_msg()
-            wrench.header.frame_id = 'map'
-            wrench.wrench.force.x, wrench.wrench.force.y = force
-            self._cmd_force.publish(wrench)
+            if self._command_sink is not None:
+                self._command_sink(self.params['agent_id'], t, *force)
+            else:
+                wrench = WrenchStamped()
+                wrench.header.stamp = now.to_msg()
+                wrench.header.frame_id = 'map'
+                wrench.wrench.force.x, wrench.wrench.force.y = force
+                self._cmd_force.publish(wrench)
         # The setpoint changes at the outer-loop rate only: publish it when it changes.
         setpoint = tuple(float(v) for v in out.velocity_setpoint)
         if setpoint != self._last_setpoint:

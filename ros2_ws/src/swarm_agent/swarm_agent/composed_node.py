@@ -46,7 +46,7 @@ from swarm_agent.brain import BrainConfigError
 from swarm_agent.conversions import sensor_batch_from_msg, stamp_seconds
 from swarm_agent.packet import PacketError
 from swarm_mission import qos
-from swarm_msgs.msg import FormationShape, GoalArray, RadioPacketArray, SensorBatch
+from swarm_msgs.msg import ForceBatch, FormationShape, GoalArray, RadioPacketArray, SensorBatch
 
 SHARED = {
     'method': ('bubble', 'Formation method of every agent'),
@@ -104,6 +104,11 @@ class ComposedAgents(Node):
         self._tx = self.create_publisher(RadioPacketArray, '/radio/tx', QoSProfile(**qos.RADIO))
         self._tx_period = 1.0 / p['radio_tx_hz']
         self._tx_due = -float('inf')
+        # With sensor_batch the agents' commands of a step leave in one ForceBatch.
+        self._commands: list[tuple[int, float, float, float]] = []
+        self._cmd_batch = (self.create_publisher(ForceBatch, '/swarm/cmd_batch',
+                                                 QoSProfile(**qos.COMMAND_BATCH))
+                           if p['sensor_batch'] else None)
         for robot in robots:
             agent_id = int(robot['id'])
             overrides = [
@@ -125,6 +130,7 @@ class ComposedAgents(Node):
             node = AgentNode('agent', namespace=f'/agent_{agent_id}',
                              tx_sink=self._tx_pending.extend, own_timers=False,
                              shared_inputs=bool(p['sensor_batch']),
+                             command_sink=(self._command if p['sensor_batch'] else None),
                              parameter_overrides=overrides, context=self.context,
                              start_parameter_services=False)
             if self._time_source is not None:
@@ -154,6 +160,9 @@ class ComposedAgents(Node):
         for node in list(self.agents.values()):
             getattr(node, method)(*args)
 
+    def _command(self, agent_id: int, stamp: float, fx: float, fy: float) -> None:
+        self._commands.append((agent_id, stamp, fx, fy))
+
     def _on_control(self) -> None:
         """Step every agent's inner loop, then send the radio frames they produced.
 
@@ -163,10 +172,18 @@ class ComposedAgents(Node):
         once per hop of a flood.
         """
         self._each('on_control')
-        t = self._timer_clock.now().nanoseconds * 1e-9
+        now = self._timer_clock.now()
+        t = now.nanoseconds * 1e-9
         if t >= self._tx_due:
             self._tx_due = t + self._tx_period
             flush_radio(self._tx, self._tx_pending, self._timer_clock)
+        if self._commands:
+            msg = ForceBatch()
+            msg.header.stamp = now.to_msg()
+            ids, stamps, fx, fy = zip(*self._commands)
+            msg.ids, msg.stamps, msg.fx, msg.fy = list(ids), list(stamps), list(fx), list(fy)
+            self._commands.clear()
+            self._cmd_batch.publish(msg)
 
     def _on_batch(self, msg: SensorBatch) -> None:
         """Hand each agent of this process its part of the world's step."""

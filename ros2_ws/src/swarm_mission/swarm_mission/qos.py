@@ -24,6 +24,10 @@ SENSOR = {'history': KEEP_LAST, 'depth': 5, 'reliability': BEST_EFFORT,
 # 50 composed agents unheard until the 60 s start-up window ran out (measured).
 COMMAND = {'history': KEEP_LAST, 'depth': 1, 'reliability': RELIABLE,
            'durability': TRANSIENT_LOCAL}
+# Batches of many agents' commands (swarm_msgs/ForceBatch): each holds only the agents
+# whose command changed, so none may be dropped; kept for a late-matching simulator too.
+COMMAND_BATCH = {'history': KEEP_LAST, 'depth': 100, 'reliability': RELIABLE,
+                 'durability': TRANSIENT_LOCAL}
 # Accelerometer samples: each carries the mean acceleration of its interval, so a
 # dropped sample is a lost velocity increment for the Kalman filter: reliable, deep.
 IMU = {'history': KEEP_LAST, 'depth': 50, 'reliability': RELIABLE,

@@ -83,6 +83,7 @@ from swarm_mission.shapes import load_shape, ShapeError
 from swarm_msgs.msg import (
     AgentState,
     AgentTruth,
+    ForceBatch,
     FormationShape,
     GoalArray,
     RadioPacketArray,
@@ -109,8 +110,9 @@ PARAMETERS = {
     'range_rate_hz': (1.0, 'TOA ranging rate per simulated second'),
     'radio_rate_hz': (20.0, 'Radio delivery batches per simulated second, per robot'),
     'sensor_batch': (False, 'Publish imu, ranges and radio deliveries of every robot in one '
-                            '/swarm/sensor_batch per step (for composed agents) instead of '
-                            'the per-robot topics'),
+                            '/swarm/sensor_batch per step and take force commands from '
+                            '/swarm/cmd_batch (composed agents) instead of the per-robot '
+                            'topics'),
     'truth_rate_hz': (2.0, 'Ground-truth publication rate (sim time)'),
     'marker_rate_hz': (1.0, 'RViz marker rate on /swarm/markers (sim time); 0: none'),
     'command_timeout_s': (0.5, 'Force commands older than this are dropped to zero'),
@@ -269,8 +271,14 @@ class SimNode(Node):
             if r.is_beacon:
                 self.gps_pubs[r.id] = lean_publisher(self, PoseWithCovarianceStamped,
                                                      f'{ns}/gps', sensor)
-            lean_subscription(self, WrenchStamped, f'{ns}/cmd_force',
-                              lambda m, i=self.index[r.id]: self._on_force(i, m), command)
+            if not p['sensor_batch']:
+                lean_subscription(self, WrenchStamped, f'{ns}/cmd_force',
+                                  lambda m, i=self.index[r.id]: self._on_force(i, m),
+                                  command)
+        if p['sensor_batch']:
+            # Composed agents answer in kind: every command of a step in one ForceBatch.
+            self.create_subscription(ForceBatch, '/swarm/cmd_batch', self._on_force_batch,
+                                     QoSProfile(**qos.COMMAND_BATCH))
         self.create_subscription(RadioPacketArray, '/radio/tx', self._on_tx, radio)
         self.create_subscription(Int32MultiArray, '/swarm/kill', self._on_kill, 10)
         self.create_subscription(Int32MultiArray, '/swarm/radio_off',
@@ -297,7 +305,26 @@ class SimNode(Node):
 
     # -- inputs
     def _on_force(self, i: int, msg: WrenchStamped) -> None:
-        f = np.array([msg.wrench.force.x, msg.wrench.force.y])
+        self._command(i, msg.wrench.force.x, msg.wrench.force.y,
+                      stamp_seconds(msg.header.stamp))
+        self._step_when_answered()
+
+    def _on_force_batch(self, msg: ForceBatch) -> None:
+        n = len(msg.ids)
+        if not len(msg.fx) == len(msg.fy) == len(msg.stamps) == n:
+            self.get_logger().error(
+                f'/swarm/cmd_batch: {n} ids but {len(msg.fx)} fx, {len(msg.fy)} fy and '
+                f'{len(msg.stamps)} stamps; dropped', throttle_duration_sec=10.0)
+            return
+        for agent, fx, fy, stamp in zip(msg.ids, msg.fx, msg.fy, msg.stamps):
+            i = self.index.get(int(agent))
+            if i is not None:
+                self._command(i, fx, fy, stamp)
+        self._step_when_answered()
+
+    def _command(self, i: int, fx: float, fy: float, stamp: float) -> None:
+        """Robot ``i``'s force command (N, map frame), stamped on its agent's clock."""
+        f = np.array([fx, fy], dtype=float)
         if not np.all(np.isfinite(f)):
             if i not in self._warned:
                 self._warned.add(i)
@@ -315,9 +342,10 @@ class SimNode(Node):
             f *= self.params['max_force'] / norm
         self.forces[i] = f
         self.force_time[i] = self.t
-        stamp = msg.header.stamp
-        self.force_stamp[i] = stamp_seconds(stamp)
+        self.force_stamp[i] = stamp
         self.force_wall[i] = time.monotonic()
+
+    def _step_when_answered(self) -> None:
         # As fast as possible and paced by the agents: step as soon as the last of them
         # has answered the current time, not at the next clock_rate_hz tick (on 2 cores
         # the ticks, not the agents, held 12 agents at 5x real time). Through a guard
