@@ -155,7 +155,7 @@ def test_a_composed_process_takes_its_agents_inputs_from_one_sensor_batch(tmp_pa
             Time(sec=3), imu_ids=[2], imu_accel=[[2.0, 0.0]], imu_noise_std=0.01,
             ranges=[RangeArray(receiver=1, ranges=[RangeMeasurement(
                 beacon_id=0, range=4.5, stddev=0.1)])],
-            rx={1: [(3.0, heartbeat)]}))
+            rx=[(3.0, heartbeat, [1])]))
         deadline = time.monotonic() + 10.0
         while 0 not in agent1.brain.neighbours and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)

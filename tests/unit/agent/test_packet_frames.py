@@ -88,29 +88,31 @@ def test_a_sensor_batch_carries_each_robots_part_of_a_step():
     ranges = [RangeArray(receiver=4, ranges=[RangeMeasurement(beacon_id=1, range=3.5,
                                                               stddev=0.1)])]
     frames = _frames()
+    # Deliveries grouped by frame, in arrival order, as RadioMedium.deliver_grouped.
+    (s0, f0), (s1, f1), (s2, f2) = frames
+    grouped = [(s0, f0, [11, 4]), (s1, f1, [4]), (s2, f2, [11, 4, 9])]
     msg = sensor_batch_to_msg(stamp, imu_ids=[4, 9], imu_accel=np.array([[0.1, -0.2],
                                                                          [0.0, 0.3]]),
-                              imu_noise_std=0.01, ranges=ranges,
-                              rx={4: frames[:2], 9: [], 11: frames[2:]})
+                              imu_noise_std=0.01, ranges=ranges, rx=grouped)
     imu, got_ranges, rx = sensor_batch_from_msg(msg)
     assert imu == [(4, 0.1, -0.2), (9, 0.0, 0.3)] and msg.imu_noise_std == 0.01
     assert got_ranges[0].receiver == 4 and got_ranges[0].ranges[0].range == 3.5
-    assert rx == {4: frames[:2], 9: [], 11: frames[2:]}
+    assert rx == {4: frames, 9: frames[2:], 11: [frames[0], frames[2]]}
+    # Each frame travels once, whatever the number of its receivers.
+    assert len(msg.rx_frames) == 6 and len(msg.frames) == len(pack_frames(frames))
     empty = sensor_batch_to_msg(stamp)            # nothing due this step
     assert sensor_batch_from_msg(empty) == ([], [], {})
     # Arrays that disagree, or a receiver's bytes cut short, are refused, never misread.
-    shared = sensor_batch_to_msg(stamp, rx={4: frames, 9: frames[1:], 11: frames[:1]})
-    assert len(shared.rx_frames) == 6 and len(shared.frames) == len(pack_frames(frames))
-    assert sensor_batch_from_msg(shared)[2] == {4: frames, 9: frames[1:], 11: frames[:1]}
-    short = sensor_batch_to_msg(stamp, rx={4: frames})
+    every = [(s, f, [4]) for s, f in frames]
+    short = sensor_batch_to_msg(stamp, rx=every)
     short.rx_counts = [short.rx_counts[0] + 1]
     with pytest.raises(PacketError, match='summing to 4 frames, 3 indices'):
         sensor_batch_from_msg(short)
-    wild = sensor_batch_to_msg(stamp, rx={4: frames})
+    wild = sensor_batch_to_msg(stamp, rx=every)
     wild.rx_frames = [0, 1, 3]
     with pytest.raises(PacketError, match='frame index 3 beyond the 3 frames'):
         sensor_batch_from_msg(wild)
-    cut = sensor_batch_to_msg(stamp, rx={4: frames})
+    cut = sensor_batch_to_msg(stamp, rx=every)
     cut.frames = cut.frames[:-1]
     with pytest.raises(PacketError, match='truncated frame header'):
         sensor_batch_from_msg(cut)

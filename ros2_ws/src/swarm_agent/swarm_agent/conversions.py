@@ -6,7 +6,7 @@ Imports message classes only (no rclpy), so it is tested without a ROS graph.
 from __future__ import annotations
 
 from array import array
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 
 from builtin_interfaces.msg import Time
 import numpy as np
@@ -58,12 +58,14 @@ def frames_or_log(msg: RadioPacketArray, logger, topic: str) -> list[tuple[float
 
 def sensor_batch_to_msg(stamp: Time, *, imu_ids=(), imu_accel=None, imu_noise_std: float = 0.0,
                         ranges: Iterable[RangeArray] = (),
-                        rx: dict[int, list[tuple[float, Packet]]] | None = None) -> SensorBatch:
+                        rx: Sequence[tuple[float, Packet, Sequence[int]]] = ()
+                        ) -> SensorBatch:
     """One step's sensor data and radio deliveries of many robots -> swarm_msgs/SensorBatch.
 
-    ``imu_accel`` (len(imu_ids), 2) map-frame accelerations; ``rx`` receiver id ->
-    ``(stamp, packet)`` frames it heard. A frame heard by several receivers (the same
-    Packet object, as the medium delivers a broadcast) is packed once.
+    ``imu_accel`` (len(imu_ids), 2) map-frame accelerations; ``rx`` the deliveries in
+    arrival order, grouped by frame as the medium makes them
+    (``RadioMedium.deliver_grouped``): ``(stamp, packet, receivers)``. Each frame is
+    packed once; each receiver gets the indices of its frames, in arrival order.
     """
     msg = SensorBatch()
     msg.header.stamp = stamp
@@ -75,20 +77,16 @@ def sensor_batch_to_msg(stamp: Time, *, imu_ids=(), imu_accel=None, imu_noise_st
         msg.imu_noise_std = float(imu_noise_std)
     msg.ranges = list(ranges)
     if rx:
-        index: dict[int, int] = {}
-        distinct: list[tuple[float, Packet]] = []
-        refs = array('I')
-        for frames in rx.values():
-            for stamp_s, packet in frames:
-                k = index.get(id(packet))
-                if k is None:
-                    k = index[id(packet)] = len(distinct)
-                    distinct.append((stamp_s, packet))
-                refs.append(k)
-        msg.rx_ids = array('H', [int(r) for r in rx])
-        msg.rx_counts = array('I', [len(frames) for frames in rx.values()])
-        msg.rx_frames = refs
-        msg.frames = array('B', pack_frames(distinct))
+        # Vectorised: one (receiver, frame index) pair per delivery, stably sorted by
+        # receiver so that each receiver's frames stay in arrival order.
+        receivers = np.fromiter((r for _, _, rs in rx for r in rs), dtype=np.int64)
+        frame_of = np.repeat(np.arange(len(rx)), [len(rs) for _, _, rs in rx])
+        order = np.argsort(receivers, kind='stable')
+        ids, counts = np.unique(receivers[order], return_counts=True)
+        msg.rx_ids = array('H', ids.tolist())
+        msg.rx_counts = array('I', counts.tolist())
+        msg.rx_frames = array('I', frame_of[order].tolist())
+        msg.frames = array('B', pack_frames((stamp_s, packet) for stamp_s, packet, _ in rx))
     return msg
 
 

@@ -229,6 +229,7 @@ class SimNode(Node):
         self.t = 0.0
         self._due = {k: 0.0 for k in ('imu', 'gps', 'range', 'radio', 'truth', 'marker')}
         self._rx_batches: dict[int, list[tuple[float, Packet]]] = {}
+        self._rx_grouped: list[tuple[float, Packet, list[int]]] = []
         self._record = None
         if p['record_dir']:
             path = pathlib.Path(p['record_dir'])
@@ -533,12 +534,16 @@ class SimNode(Node):
         stamp = self._stamp()
         self._publish_clock(stamp)
         batch = {} if self.batch_pub is not None else None   # sensor_batch contents
-        for receiver, packet in self.medium.deliver(self.t):
-            if receiver in self.index:
+        if batch is not None:
+            # Kept grouped by frame, as the medium delivers them (one entry per frame).
+            self._rx_grouped.extend((self.t, packet, receivers)
+                                    for packet, receivers in self.medium.deliver_grouped(self.t))
+        else:
+            for receiver, packet in self.medium.deliver(self.t):
                 self._rx_batches.setdefault(receiver, []).append((self.t, packet))
         if self._due_now('radio', 'radio_rate_hz'):
             if batch is not None:
-                batch['rx'] = self._rx_batches
+                batch['rx'], self._rx_grouped = self._rx_grouped, []
             else:
                 for receiver, frames in self._rx_batches.items():
                     self.rx_pubs[receiver].publish(frames_to_msg(frames, stamp))
