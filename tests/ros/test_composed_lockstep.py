@@ -76,7 +76,7 @@ def test_every_clock_advance_is_answered_by_every_agent(tmp_path):
         source = container._time_source
         agent_clocks = {id(a.get_clock()) for a in container.agents.values()}
         stepping = [tmr for tmr in container.timers if tmr.clock is not container.get_clock()]
-        assert len(stepping) == 3                 # control, state, routes
+        assert len(stepping) == 4                 # control, state, routes, status line
         timer_clocks = {id(tmr.clock) for tmr in stepping}
         assert len(timer_clocks) == 1
         assert agent_clocks | timer_clocks <= {id(c) for c in source._associated_clocks}

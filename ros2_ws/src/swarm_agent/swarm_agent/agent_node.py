@@ -225,8 +225,8 @@ class AgentNode(Node):
             self.create_timer(1.0 / p['control_rate_hz'], self.on_control)
             self.create_timer(1.0 / p['state_rate_hz'], self.publish_state)
             self.create_timer(1.0 / p['routes_rate_hz'], self.publish_routes)
-        if p['status_log_period_s'] > 0:
-            self.create_timer(p['status_log_period_s'], self._log_status)
+            if p['status_log_period_s'] > 0:
+                self.create_timer(p['status_log_period_s'], self.log_status)
         self.get_logger().info(
             f'agent {p["agent_id"]} type {p["agent_type"]} beacon={p["is_beacon"]} '
             f'method={p["method"]} ready')
@@ -350,7 +350,7 @@ class AgentNode(Node):
                                            self.brain.router.routes(),
                                            self.get_clock().now().to_msg()))
 
-    def _log_status(self) -> None:
+    def log_status(self) -> None:
         self.get_logger().info(f'{self.brain.status_line()}; radio lag max '
                                f'{self._radio_lag_max:.2f} s')
         self._radio_lag_max = 0.0

@@ -16,7 +16,8 @@ process in the executor, under 10 % in the agents' callbacks):
   clock callbacks a second through one executor), and so is the clock of the timers
   that step them, so an agent never reads an older time than the tick it serves.
 - One timer steps every agent's inner loop (``AgentNode.on_control``), one publishes
-  every agent's state and one every agent's routes, instead of three timers per agent.
+  every agent's state, one every agent's routes and one logs every agent's status line,
+  instead of four timers per agent.
 - The agents have no parameter or type-description services (seven services each) and
   their per-robot topics have no default QoS event handlers (``agent_node.lean_publisher``).
   Their parameters are the container's (listed by ``ros2 param dump
@@ -142,6 +143,10 @@ class ComposedAgents(Node):
         for rate, method in (('state_rate_hz', 'publish_state'),
                              ('routes_rate_hz', 'publish_routes')):
             self.create_timer(1.0 / p[rate], lambda m=method: self._each(m), clock=timer_clock)
+        status = next(iter(self.agents.values())).params['status_log_period_s'] \
+            if self.agents else 0.0
+        if status > 0:
+            self.create_timer(status, lambda: self._each('log_status'), clock=timer_clock)
         self.create_subscription(Int32MultiArray, '/swarm/kill', self._on_kill, 10)
         if p['sensor_batch']:
             latched = QoSProfile(**qos.LATCHED)
