@@ -732,14 +732,20 @@ def main(argv: list[str] | None = None) -> int:
             heard = [a for a, st in zip(monitor.agent_ids, monitor.states) if st is not None]
         goal_versions = monitor.goal_version
         spin_thread.join(timeout=5.0)
-        monitor.destroy_node()
-        # rclpy's shutdown once blocked forever in rcl_logging_fini on a 50-agent run,
-        # with every child already stopped: give it a few seconds, then write the report.
-        closer = threading.Thread(target=rclpy.try_shutdown, daemon=True)
+
+        def close_ros() -> None:
+            monitor.destroy_node()
+            rclpy.try_shutdown()
+
+        # The ROS teardown has blocked forever with every child already stopped: rclpy's
+        # shutdown in rcl_logging_fini (a 50-agent run), and destroying a publisher of
+        # the monitor node (a 50-agent run, one process per agent; py-spy: idle in
+        # Publisher.destroy). Give it a few seconds, then write the report anyway.
+        closer = threading.Thread(target=close_ros, daemon=True)
         closer.start()
         closer.join(timeout=10.0)
         if closer.is_alive():
-            print('\nlaunch_swarm: rclpy shutdown hangs; writing the report anyway',
+            print('\nlaunch_swarm: the ROS teardown hangs; writing the report anyway',
                   file=sys.stderr, flush=True)
     print()
     from swarm_sim.report import run_report, write_metrics
