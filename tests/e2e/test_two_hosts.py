@@ -8,7 +8,7 @@ localhost and name the other side in ROS_STATIC_PEERS, as two real hosts would.
 Asserts that the shape forms as in the single-host e2e test (every agent settles inside,
 agreement, no goal claimed twice), that the traffic really crossed (the monitor in A
 heard every agent's state, every robot started outside the shape and ended inside it,
-so B's agents drove their robots through A's sim, and megabytes went over the veth both
+so B's agents drove their robots through A's sim, and the data went over the veth both
 ways), and that the isolation is real (without static peers, A does not see B's nodes).
 
 Needs root and ``ip`` (iproute2); skips with the reason otherwise.
@@ -125,5 +125,8 @@ def test_a_swarm_split_over_two_hosts_forms_the_shape(processes, two_hosts, ros_
     robots = yaml.safe_load((tmp_path / 'b' / 'fleet.yaml').read_text())['robots']
     assert robots == yaml.safe_load((tmp_path / 'a' / 'fleet.yaml').read_text())['robots']
     assert all(max(abs(r['x']), abs(r['y'])) > 4.0 for r in robots if r['id'] >= SPLIT)
-    # Through the network, not a shortcut (shared memory is shared between namespaces).
-    assert min(rx, tx) > 1_000_000, summary
+    # Through the network, not a shortcut (shared memory is shared between namespaces):
+    # half a megabyte each way at least. Measured since the composed agents batch their
+    # inputs and commands (one SensorBatch and one ForceBatch per step): 0.9-1.5 MB each
+    # way for a run settled near 50 s (before batching, several megabytes).
+    assert min(rx, tx) > 500_000, summary
