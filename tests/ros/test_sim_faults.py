@@ -1,52 +1,66 @@
-"""sim_node's run-time radio faults through ROS parameters (what launch_swarm --set-sim does).
+"""sim_node's faults on command, its RViz markers and its batched command input.
 
-Three point-mass robots 6 m apart, no agents (the world is not held for them): a
-parameter client, as the launcher's, cuts the radio range, raises the packet loss and
-starts a sweeping wall; the medium's links and drop counters follow, and bad values
-are refused with the reason.
+Robots a few metres apart and no agents (the world is not held for them). Run-time
+parameters, set by a parameter client as the launcher's: a range cut, packet loss and a
+sweeping wall; the medium's links and drop counters follow, and bad values are refused
+with the reason. Fault topics: a radio off and on, an obstacle moved (bodies and radio
+shadow), bad commands ignored; the markers follow. A composed process's ForceBatch.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
-import time
 
 import pytest
 
 rclpy = pytest.importorskip('rclpy')
 
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.parameter_client import AsyncParameterClient  # noqa: E402
+from spin import ros_context, spin_until  # noqa: E402
 
 from swarm_agent.packet import BROADCAST, Packet  # noqa: E402
 from swarm_sim.fleet import RobotSpec, save_fleet  # noqa: E402
 from swarm_sim.sim_node import SimNode  # noqa: E402
 
 
+@contextlib.contextmanager
+def _world(tmp_path, robots, **params):
+    """A SimNode over ``robots`` (RobotSpec) with a probe node, spun by one executor."""
+    fleet_file = tmp_path / 'fleet.yaml'
+    save_fleet(fleet_file, robots)
+    settings = {'fleet_file': str(fleet_file), 'backend': 'pointmass',
+                'real_time_factor': 0.0, 'max_agent_lag_s': 0.0, 'half_size': 20.0, **params}
+    with ros_context() as (context, executor):
+        sim = SimNode(context=context, parameter_overrides=[
+            Parameter(name, value=value) for name, value in settings.items()])
+        probe = rclpy.create_node('fault_probe', context=context)
+        executor.add_node(sim)
+        executor.add_node(probe)
+        try:
+            yield executor, sim, probe
+        finally:
+            sim.close()
+            sim.destroy_node()
+            probe.destroy_node()
+
+
+THREE = [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 1, True, 6.0, 0.0),
+         RobotSpec(2, 1, False, 12.0, 0.0)]
+
+
 def _until(executor, condition, timeout=20.0):
-    deadline = time.monotonic() + timeout
-    while not condition() and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.05)
-    return condition()
+    return spin_until(executor, condition, timeout, step=0.05)
 
 
 def test_range_loss_and_wall_set_at_run_time_change_the_medium(tmp_path):
-    fleet_file = tmp_path / 'fleet.yaml'
-    save_fleet(fleet_file, [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 1, True, 6.0, 0.0),
-                            RobotSpec(2, 1, False, 12.0, 0.0)])
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    executor = SingleThreadedExecutor(context=context)
-    sim = SimNode(context=context, parameter_overrides=[
-        Parameter('fleet_file', value=str(fleet_file)), Parameter('backend', value='pointmass'),
-        Parameter('real_time_factor', value=0.0), Parameter('max_agent_lag_s', value=0.0),
-        Parameter('half_size', value=20.0)])
-    probe = rclpy.create_node('fault_probe', context=context)
-    client = AsyncParameterClient(probe, 'sim')
-    executor.add_node(sim)
-    executor.add_node(probe)
+    with _world(tmp_path, THREE) as (executor, sim, probe):
+        _check_run_time_settings(executor, sim, AsyncParameterClient(probe, 'sim'))
+
+
+def _check_run_time_settings(executor, sim, client):
 
     def set_param(name, value):
         future = client.set_parameters([Parameter(name, value=value)])
@@ -59,39 +73,32 @@ def test_range_loss_and_wall_set_at_run_time_change_the_medium(tmp_path):
             sim.medium.transmit(sim.t, Packet(source=1, destination=BROADCAST, kind=0,
                                               sequence=k, ttl=1, payload=b'hb'))
 
-    try:
-        assert _until(executor, client.services_are_ready)
-        assert _until(executor, lambda: sim.t > 0.5)
-        assert sorted(sim.medium.neighbours(1)) == [0, 2]
-        assert set_param('radio_range_m', 5.0).successful
-        assert _until(executor, lambda: sim.medium.neighbours(1) == [])  # links follow
-        refused = set_param('radio_range_m', -1.0)
-        assert not refused.successful and 'radio range must be a positive' in refused.reason
-        assert sim.medium.config.range_m == 5.0
-        assert set_param('radio_range_m', 25.0).successful
-        assert _until(executor, lambda: sorted(sim.medium.neighbours(1)) == [0, 2])
+    assert _until(executor, client.services_are_ready)
+    assert _until(executor, lambda: sim.t > 0.5)
+    assert sorted(sim.medium.neighbours(1)) == [0, 2]
+    assert set_param('radio_range_m', 5.0).successful
+    assert _until(executor, lambda: sim.medium.neighbours(1) == [])  # links follow
+    refused = set_param('radio_range_m', -1.0)
+    assert not refused.successful and 'radio range must be a positive' in refused.reason
+    assert sim.medium.config.range_m == 5.0
+    assert set_param('radio_range_m', 25.0).successful
+    assert _until(executor, lambda: sorted(sim.medium.neighbours(1)) == [0, 2])
 
-        assert set_param('loss', 1.0).successful
-        before = sim.medium.stats.dropped_loss
-        broadcast(20)
-        assert _until(executor, lambda: sim.medium.stats.dropped_loss == before + 2 * 20)
-        assert not set_param('loss', 1.5).successful and sim.medium.config.loss == 1.0
-        assert set_param('loss', 0.0).successful
+    assert set_param('loss', 1.0).successful
+    before = sim.medium.stats.dropped_loss
+    broadcast(20)
+    assert _until(executor, lambda: sim.medium.stats.dropped_loss == before + 2 * 20)
+    assert not set_param('loss', 1.5).successful and sim.medium.config.loss == 1.0
+    assert set_param('loss', 0.0).successful
 
-        # A wall from x = -20 m at 5 m/s reaches the robots (x 0..12) within a few seconds
-        # of sim time and cuts 0-1 and 1-2 while it stands between them.
-        t0 = sim.t
-        assert set_param('radio_wall_speed_mps', 5.0).successful
-        assert sim.medium.wall is not None and sim.medium.wall.t0 == pytest.approx(t0)
-        assert _until(executor, lambda: len(sim.medium.neighbours(1)) < 2, timeout=30.0)
-        assert _until(executor, lambda: sim.medium.wall is None, timeout=30.0)  # it left
-        assert _until(executor, lambda: sorted(sim.medium.neighbours(1)) == [0, 2])
-    finally:
-        executor.shutdown()
-        sim.close()
-        sim.destroy_node()
-        probe.destroy_node()
-        rclpy.try_shutdown(context=context)
+    # A wall from x = -20 m at 5 m/s reaches the robots (x 0..12) within a few seconds
+    # of sim time and cuts 0-1 and 1-2 while it stands between them.
+    t0 = sim.t
+    assert set_param('radio_wall_speed_mps', 5.0).successful
+    assert sim.medium.wall is not None and sim.medium.wall.t0 == pytest.approx(t0)
+    assert _until(executor, lambda: len(sim.medium.neighbours(1)) < 2, timeout=30.0)
+    assert _until(executor, lambda: sim.medium.wall is None, timeout=30.0)  # it left
+    assert _until(executor, lambda: sorted(sim.medium.neighbours(1)) == [0, 2])
 
 
 def test_radio_kill_and_obstacle_move_on_command_bad_commands_ignored(tmp_path):
@@ -102,6 +109,16 @@ def test_radio_kill_and_obstacle_move_on_command_bad_commands_ignored(tmp_path):
     obstacles and malformed commands leave the world as it was, and it keeps stepping.
     """
     pytest.importorskip('pybullet')
+    shape_file = tmp_path / 'shape.json'
+    shape_file.write_text(json.dumps({
+        'outer': [[-5, 5], [-5, 9], [-1, 9], [-1, 5]],
+        'obstacles': [[[8, -1], [10, -1], [10, 1], [8, 1]]]}))
+    with _world(tmp_path, THREE, backend='pybullet', terrain='flat',
+                shape=str(shape_file)) as (executor, sim, probe):
+        _check_radio_obstacle_and_markers(executor, sim, probe)
+
+
+def _check_radio_obstacle_and_markers(executor, sim, probe):
     from rclpy.qos import QoSProfile
     from std_msgs.msg import Float64MultiArray, Int32MultiArray
     from visualization_msgs.msg import MarkerArray
@@ -109,22 +126,6 @@ def test_radio_kill_and_obstacle_move_on_command_bad_commands_ignored(tmp_path):
     from swarm_mission import qos
     from swarm_msgs.msg import AgentState
 
-    fleet_file = tmp_path / 'fleet.yaml'
-    save_fleet(fleet_file, [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 1, True, 6.0, 0.0),
-                            RobotSpec(2, 1, False, 12.0, 0.0)])
-    shape_file = tmp_path / 'shape.json'
-    shape_file.write_text(json.dumps({
-        'outer': [[-5, 5], [-5, 9], [-1, 9], [-1, 5]],
-        'obstacles': [[[8, -1], [10, -1], [10, 1], [8, 1]]]}))
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    executor = SingleThreadedExecutor(context=context)
-    sim = SimNode(context=context, parameter_overrides=[
-        Parameter('fleet_file', value=str(fleet_file)), Parameter('backend', value='pybullet'),
-        Parameter('terrain', value='flat'), Parameter('shape', value=str(shape_file)),
-        Parameter('real_time_factor', value=0.0), Parameter('max_agent_lag_s', value=0.0),
-        Parameter('half_size', value=20.0)])
-    probe = rclpy.create_node('fault_probe', context=context)
     radio_off = probe.create_publisher(Int32MultiArray, '/swarm/radio_off', 10)
     radio_on = probe.create_publisher(Int32MultiArray, '/swarm/radio_on', 10)
     move = probe.create_publisher(Float64MultiArray, '/swarm/move_obstacle', 10)
@@ -132,50 +133,41 @@ def test_radio_kill_and_obstacle_move_on_command_bad_commands_ignored(tmp_path):
     views = []
     probe.create_subscription(MarkerArray, '/swarm/markers', views.append,
                               QoSProfile(**qos.STATE))
-    executor.add_node(sim)
-    executor.add_node(probe)
 
     def wall_height_at(x, y):
         return float(sim.backend.ground_height([[x, y]])[0])
 
-    try:
-        assert _until(executor, lambda: sim.t > 0.5)
-        assert sorted(sim.medium.neighbours(1)) == [0]     # the wall shadows 1-2
-        assert wall_height_at(9.0, 0.0) > 0.5              # a prism stands there
-        _until(executor, lambda: radio_off.get_subscription_count() > 0)
-        radio_off.publish(Int32MultiArray(data=[0, 99]))   # 99: not in the fleet
-        assert _until(executor, lambda: sim.medium.neighbours(1) == [])
-        assert sim.alive.all()                             # the robot stays in the world
-        radio_on.publish(Int32MultiArray(data=[0]))
-        assert _until(executor, lambda: sim.medium.neighbours(1) == [0])
+    assert _until(executor, lambda: sim.t > 0.5)
+    assert sorted(sim.medium.neighbours(1)) == [0]     # the wall shadows 1-2
+    assert wall_height_at(9.0, 0.0) > 0.5              # a prism stands there
+    _until(executor, lambda: radio_off.get_subscription_count() > 0)
+    radio_off.publish(Int32MultiArray(data=[0, 99]))   # 99: not in the fleet
+    assert _until(executor, lambda: sim.medium.neighbours(1) == [])
+    assert sim.alive.all()                             # the robot stays in the world
+    radio_on.publish(Int32MultiArray(data=[0]))
+    assert _until(executor, lambda: sim.medium.neighbours(1) == [0])
 
-        for bad in ([0.0, 1.0], [5.0, 0.0, 10.0], [0.5, 0.0, 10.0], [0.0, math.nan, 1.0]):
-            move.publish(Float64MultiArray(data=bad))      # short, no obstacle 5, 0.5, NaN
-        t_bad = sim.t
-        assert _until(executor, lambda: sim.t > t_bad + 1.0)
-        assert sorted(sim.medium.neighbours(1)) == [0] and wall_height_at(9.0, 0.0) > 0.5
+    for bad in ([0.0, 1.0], [5.0, 0.0, 10.0], [0.5, 0.0, 10.0], [0.0, math.nan, 1.0]):
+        move.publish(Float64MultiArray(data=bad))      # short, no obstacle 5, 0.5, NaN
+    t_bad = sim.t
+    assert _until(executor, lambda: sim.t > t_bad + 1.0)
+    assert sorted(sim.medium.neighbours(1)) == [0] and wall_height_at(9.0, 0.0) > 0.5
 
-        move.publish(Float64MultiArray(data=[0.0, 0.0, 10.0]))   # out of the way
-        assert _until(executor, lambda: sorted(sim.medium.neighbours(1)) == [0, 2])
-        assert wall_height_at(9.0, 0.0) < 0.1 and wall_height_at(9.0, 10.0) > 0.5
-        assert sim.obstacles[0].centroid.y == pytest.approx(10.0)
+    move.publish(Float64MultiArray(data=[0.0, 0.0, 10.0]))   # out of the way
+    assert _until(executor, lambda: sorted(sim.medium.neighbours(1)) == [0, 2])
+    assert wall_height_at(9.0, 0.0) < 0.1 and wall_height_at(9.0, 10.0) > 0.5
+    assert sim.obstacles[0].centroid.y == pytest.approx(10.0)
 
-        # The RViz view follows: the moved obstacle, the links, the mode agent 2 reports.
-        state_pub.publish(AgentState(id=2, mode=AgentState.MODE_LOST))
-        assert _until(executor, lambda: sim._modes.get(2) == AgentState.MODE_LOST)
-        views.clear()
-        assert _until(executor, lambda: len(views) > 0)
-        latest = {(m.ns, m.id): m for m in views[-1].markers}
-        outline = latest[('obstacles', 0)]
-        assert min(p.y for p in outline.points) == pytest.approx(9.0)
-        assert len(latest[('links', 0)].points) == 2 * 3          # every pair, no wall
-        assert latest[('modes', 2)].color.r == 1.0                # orange: lost
-    finally:
-        executor.shutdown()
-        sim.close()
-        sim.destroy_node()
-        probe.destroy_node()
-        rclpy.try_shutdown(context=context)
+    # The RViz view follows: the moved obstacle, the links, the mode agent 2 reports.
+    state_pub.publish(AgentState(id=2, mode=AgentState.MODE_LOST))
+    assert _until(executor, lambda: sim._modes.get(2) == AgentState.MODE_LOST)
+    views.clear()
+    assert _until(executor, lambda: len(views) > 0)
+    latest = {(m.ns, m.id): m for m in views[-1].markers}
+    outline = latest[('obstacles', 0)]
+    assert min(p.y for p in outline.points) == pytest.approx(9.0)
+    assert len(latest[('links', 0)].points) == 2 * 3          # every pair, no wall
+    assert latest[('modes', 2)].color.r == 1.0                # orange: lost
 
 
 def test_the_world_takes_a_composed_process_commands_in_one_batch(tmp_path):
@@ -185,20 +177,11 @@ def test_the_world_takes_a_composed_process_commands_in_one_batch(tmp_path):
     from swarm_mission import qos
     from swarm_msgs.msg import ForceBatch
 
-    fleet_file = tmp_path / 'fleet.yaml'
-    save_fleet(fleet_file, [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 2, True, 6.0, 0.0)])
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    executor = SingleThreadedExecutor(context=context)
-    sim = SimNode(context=context, parameter_overrides=[
-        Parameter('fleet_file', value=str(fleet_file)), Parameter('backend', value='pointmass'),
-        Parameter('real_time_factor', value=0.0), Parameter('max_agent_lag_s', value=0.2),
-        Parameter('sensor_batch', value=True), Parameter('half_size', value=20.0)])
-    probe = rclpy.create_node('composed_probe', context=context)
-    pub = probe.create_publisher(ForceBatch, '/swarm/cmd_batch', QoSProfile(**qos.COMMAND_BATCH))
-    executor.add_node(sim)
-    executor.add_node(probe)
-    try:
+    robots = [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 2, True, 6.0, 0.0)]
+    with _world(tmp_path, robots, max_agent_lag_s=0.2,
+                sensor_batch=True) as (executor, sim, probe):
+        pub = probe.create_publisher(ForceBatch, '/swarm/cmd_batch',
+                                     QoSProfile(**qos.COMMAND_BATCH))
         topics = {name for name, _ in probe.get_topic_names_and_types()}
         assert not any(t.endswith('/cmd_force') for t in topics), topics
         pub.publish(ForceBatch(ids=[0, 1], fx=[1.0, 0.0], fy=[0.0, -2.0], stamps=[0.0, 0.0]))
@@ -211,9 +194,3 @@ def test_the_world_takes_a_composed_process_commands_in_one_batch(tmp_path):
         pub.publish(ForceBatch(ids=[0], fx=[0.5], fy=[0.5], stamps=[0.2]))
         assert _until(executor, lambda: sim.forces[0, 0] == 0.5)
         assert sim.forces[1].tolist() == [0.0, -2.0]       # the malformed batch was dropped
-    finally:
-        executor.shutdown()
-        sim.close()
-        sim.destroy_node()
-        probe.destroy_node()
-        rclpy.try_shutdown(context=context)
