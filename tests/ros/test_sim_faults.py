@@ -13,6 +13,7 @@ import contextlib
 import json
 import math
 
+import numpy as np
 import pytest
 
 rclpy = pytest.importorskip('rclpy')
@@ -191,6 +192,9 @@ def test_the_world_takes_a_composed_process_commands_in_one_batch(tmp_path):
         assert _until(executor, lambda: sim.t >= 0.2 - 1e-9)
         assert sim.t <= 0.2 + 1e-9
         pub.publish(ForceBatch(ids=[0, 1], fx=[5.0], fy=[0.0, 0.0], stamps=[0.2, 0.2]))
+        pub.publish(ForceBatch(ids=[1, 7], fx=[3.0, 1.0], fy=[0.0, 0.0],
+                               stamps=[math.nan, 0.2]))    # no stamp, no robot 7
         pub.publish(ForceBatch(ids=[0], fx=[0.5], fy=[0.5], stamps=[0.2]))
         assert _until(executor, lambda: sim.forces[0, 0] == 0.5)
-        assert sim.forces[1].tolist() == [0.0, -2.0]       # the malformed batch was dropped
+        assert sim.forces[1].tolist() == [0.0, -2.0]       # the malformed ones were dropped
+        assert np.isfinite(sim.force_stamp).all()

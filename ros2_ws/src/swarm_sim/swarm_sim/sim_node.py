@@ -319,8 +319,12 @@ class SimNode(Node):
             return
         for agent, fx, fy, stamp in zip(msg.ids, msg.fx, msg.fy, msg.stamps):
             i = self.index.get(int(agent))
-            if i is not None:
-                self._command(i, fx, fy, stamp)
+            if i is None or not math.isfinite(stamp):
+                self.get_logger().error(
+                    f'/swarm/cmd_batch: a command for robot {agent} stamped {stamp} '
+                    '(unknown robot or no valid stamp); ignored', throttle_duration_sec=10.0)
+                continue
+            self._command(i, fx, fy, stamp)
         self._step_when_answered()
 
     def _command(self, i: int, fx: float, fy: float, stamp: float) -> None:
