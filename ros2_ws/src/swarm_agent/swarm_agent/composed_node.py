@@ -22,6 +22,13 @@ process in the executor, under 10 % in the agents' callbacks):
   their per-robot topics have no default QoS event handlers (``agent_node.lean_publisher``).
   Their parameters are the container's (listed by ``ros2 param dump
   /agents_container``) plus the fleet file's.
+- With ``sensor_batch`` (``launch_swarm.py --composed`` sets it, with sim_node's) the
+  world sends one ``/swarm/sensor_batch`` (swarm_msgs/SensorBatch) per step, which the
+  container hands to its agents, and the agents' commands of a control step leave in one
+  ``/swarm/cmd_batch`` (swarm_msgs/ForceBatch); shape and goals come through the
+  container too. The agents then subscribe to nothing but beacon GPS.
+- The agents' radio frames leave in one batch per ``radio_tx_hz`` period, flushed in the
+  control callback right after the step that produced them.
 
 Subscribes ``/swarm/kill`` (std_msgs/Int32MultiArray): agent ids whose nodes are
 destroyed, to emulate robots dying mid-run (self-repair experiments).

@@ -4,8 +4,11 @@ Owns the clock and steps the physics at ``physics_rate_hz``, paced to
 ``real_time_factor`` (0: as fast as possible) and never more than ``max_agent_lag_s``
 of sim time ahead of the slowest living agent (the stamp of its last force command):
 a closed loop whose controllers fall behind the plant is not the system under test.
-It waits up to ``wait_for_agents_s`` (wall) for every robot's first command, and an
-agent silent for ``agent_stall_s`` (wall) is no longer waited for.
+It waits up to ``wait_for_agents_s`` (wall) for every robot's first command (and for
+``truth_subscribers`` observers), and an agent silent for ``agent_stall_s`` (wall) is
+no longer waited for. Running as fast as possible, it steps as soon as every agent has
+answered the current time (through a guard condition, after the callbacks of its
+wait), else at ``clock_rate_hz``; a hold of a wall second names the agent it waits for.
 
 Robots come from the fleet file, obstacles from the shape spec
 (``swarm_mission.shapes.load_shape``), physics from a backend: ``pybullet``
@@ -19,11 +22,16 @@ Topics
              ``/agent_K/ranges`` (swarm_msgs/RangeArray, TOA ranges to beacon neighbours)
              ``/agent_K/radio/rx`` (swarm_msgs/RadioPacketArray, what the medium
              delivered to the robot since the last batch, ``radio_rate_hz``)
+             ``/swarm/sensor_batch`` (swarm_msgs/SensorBatch: with ``sensor_batch``,
+             every robot's imu, ranges and radio deliveries of a step in one message,
+             in place of the three per-robot topics above; for composed agents)
              ``/swarm/truth`` (swarm_msgs/SwarmTruth, for metrics only)
              ``/swarm/markers`` (visualization_msgs/MarkerArray for RViz, built by
              ``swarm_sim.markers``: robots by type and mode, goals, shape, obstacles,
              radio links; ``marker_rate_hz``, 0 turns it off)
   subscribed ``/agent_K/cmd_force`` (geometry_msgs/WrenchStamped, N, map frame)
+             ``/swarm/cmd_batch`` (swarm_msgs/ForceBatch: with ``sensor_batch``, the
+             commands of many agents in place of their cmd_force topics)
              ``/radio/tx`` (swarm_msgs/RadioPacketArray, batches from the agents)
              ``/swarm/kill`` (std_msgs/Int32MultiArray: robots to remove, a fault)
              ``/agent_K/state``, ``/swarm/goals``, ``/swarm/shape`` (for the markers
