@@ -170,6 +170,16 @@ def _check_radio_obstacle_and_markers(executor, sim, probe):
     assert len(latest[('links', 0)].points) == 2 * 3          # every pair, no wall
     assert latest[('modes', 2)].color.r == 1.0                # orange: lost
 
+    # A removed robot leaves the medium, whose links then cover the living ones only:
+    # the view still draws them between the right robots (1 at x = 6, 2 at x = 12).
+    kill = probe.create_publisher(Int32MultiArray, '/swarm/kill', 10)
+    kill.publish(Int32MultiArray(data=[0]))
+    assert _until(executor, lambda: not sim.alive[0])
+    views.clear()
+    assert _until(executor, lambda: len(views) > 0)
+    lines = {(m.ns, m.id): m for m in views[-1].markers}[('links', 0)]
+    assert sorted(round(p.x) for p in lines.points) == [6, 12]
+
 
 def test_the_world_takes_a_composed_process_commands_in_one_batch(tmp_path):
     """sensor_batch: forces arrive as swarm_msgs/ForceBatch; a malformed one is dropped."""

@@ -637,7 +637,15 @@ class SimNode(Node):
             [self.types[r.type].coverage_radius for r in self.fleet], pos, self.alive,
             modes=self._modes, goals=self._goals,
             region=self._shape.region if self._shape is not None else None,
-            obstacles=self.obstacles, links=self.medium.adjacency()[1]))
+            obstacles=self.obstacles, links=self._links_in_fleet_order()))
+
+    def _links_in_fleet_order(self) -> np.ndarray:
+        """The medium's adjacency, which covers the living robots only, by fleet index."""
+        ids, links = self.medium.adjacency()
+        at = [self.index[a] for a in ids]
+        full = np.zeros((self.n, self.n), dtype=bool)
+        full[np.ix_(at, at)] = links
+        return full
 
     def _on_goals(self, msg: GoalArray) -> None:
         self._goals = goals_from_msg(msg)
