@@ -39,6 +39,7 @@ from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallba
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+from rclpy.time import Time
 from sensor_msgs.msg import Imu
 
 from swarm_agent.agent_factory import make_brain, type_counts_from
@@ -125,12 +126,35 @@ def lean_subscription(node, msg_type, topic: str, callback, qos_profile, **kwarg
         event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False), **kwargs)
 
 
-def flush_radio(publisher, pending: Frames, clock) -> None:
-    """Publish the frames sent since the last call as one RadioPacketArray."""
-    if pending:
-        batch = frames_to_msg(pending, clock.now().to_msg())
-        pending.clear()
-        publisher.publish(batch)
+class RadioBatcher:
+    """Radio frames sent since the last batch, published as one RadioPacketArray on
+    /radio/tx at most every ``period`` seconds of the node's clock.
+
+    Flushed from the control loop that produced the frames (an agent's, or composed_node's
+    for all its agents), not from a timer of its own: one timer less to wake the process
+    for, and the frames of a step leave with that step's commands.
+    """
+
+    def __init__(self, publisher, period: float) -> None:
+        self.pending: Frames = []
+        self._publisher = publisher
+        self._period = period
+        self._due = -math.inf
+
+    def extend(self, frames: Frames) -> None:
+        """Queue ``(stamp, packet)`` frames for the next batch."""
+        self.pending.extend(frames)
+
+    def flush_if_due(self, now: Time) -> None:
+        """Publish the queued frames if a period has passed since the last batch."""
+        t = now.nanoseconds * 1e-9
+        if t < self._due:
+            return
+        self._due = t + self._period
+        if self.pending:
+            batch = frames_to_msg(self.pending, now.to_msg())
+            self.pending.clear()
+            self._publisher.publish(batch)
 
 
 class AgentNode(Node):
@@ -190,17 +214,10 @@ class AgentNode(Node):
         # the frames were lost in DDS and the assignment consensus broke (agreement
         # 0.18 on the 50-agent demo).
         self._command_sink = command_sink
-        self._tx_pending: Frames = []
-        if tx_sink is None:
-            tx = lean_publisher(self, RadioPacketArray, '/radio/tx', radio)
-            self._tx_sink = self._tx_pending.extend
-            # Flushed by the control loop (one timer less to wake this process for).
-            self._flush_tx = lambda: flush_radio(tx, self._tx_pending, self.get_clock())
-        else:
-            self._tx_sink = tx_sink
-            self._flush_tx = None
-        self._tx_period = 1.0 / p['radio_tx_hz']
-        self._tx_due = -math.inf
+        self._radio = (RadioBatcher(lean_publisher(self, RadioPacketArray, '/radio/tx', radio),
+                                    1.0 / p['radio_tx_hz'])
+                       if tx_sink is None else None)
+        self._tx_sink = self._radio.extend if tx_sink is None else tx_sink
         # Per-robot topics without rclpy's default QoS event handlers: see
         # ``lean_publisher`` (they made most of a composed process's wait set).
         self._cmd_force = (lean_publisher(self, WrenchStamped, 'cmd_force',
@@ -312,9 +329,8 @@ class AgentNode(Node):
         out = self.brain.step(t)
         if out.packets:
             self._tx_sink([(t, packet) for packet in out.packets])
-        if self._flush_tx is not None and t >= self._tx_due:
-            self._tx_due = t + self._tx_period
-            self._flush_tx()
+        if self._radio is not None:
+            self._radio.flush_if_due(now)
         # An unchanged force (a parked robot: zero) is repeated at keepalive_hz only: the
         # simulator holds the last command and paces its clock to the stamps it gets.
         force = (float(out.force[0]), float(out.force[1]))

@@ -49,7 +49,7 @@ from rclpy.time_source import TimeSource
 from std_msgs.msg import Int32MultiArray
 import yaml
 
-from swarm_agent.agent_node import AgentNode, flush_radio, Frames, make_executor
+from swarm_agent.agent_node import AgentNode, make_executor, RadioBatcher
 from swarm_agent.brain import BrainConfigError
 from swarm_agent.conversions import sensor_batch_from_msg, stamp_seconds
 from swarm_agent.packet import PacketError
@@ -108,10 +108,9 @@ class ComposedAgents(Node):
         for rate in ('radio_tx_hz', 'control_rate_hz', 'state_rate_hz', 'routes_rate_hz'):
             if not p[rate] > 0.0:
                 raise BrainConfigError(f'parameter {rate} must be above 0 Hz, got {p[rate]}')
-        self._tx_pending: Frames = []
-        self._tx = self.create_publisher(RadioPacketArray, '/radio/tx', QoSProfile(**qos.RADIO))
-        self._tx_period = 1.0 / p['radio_tx_hz']
-        self._tx_due = -float('inf')
+        self._radio = RadioBatcher(
+            self.create_publisher(RadioPacketArray, '/radio/tx', QoSProfile(**qos.RADIO)),
+            1.0 / p['radio_tx_hz'])
         # With sensor_batch the agents' commands of a step leave in one ForceBatch.
         self._commands: list[tuple[int, float, float, float]] = []
         self._cmd_batch = (self.create_publisher(ForceBatch, '/swarm/cmd_batch',
@@ -136,7 +135,7 @@ class ComposedAgents(Node):
                 Parameter('start_type_description_service', value=False),
             ]
             node = AgentNode('agent', namespace=f'/agent_{agent_id}',
-                             tx_sink=self._tx_pending.extend, own_timers=False,
+                             tx_sink=self._radio.extend, own_timers=False,
                              shared_inputs=bool(p['sensor_batch']),
                              command_sink=(self._command if p['sensor_batch'] else None),
                              parameter_overrides=overrides, context=self.context,
@@ -185,10 +184,7 @@ class ComposedAgents(Node):
         """
         self._each('on_control')
         now = self._timer_clock.now()
-        t = now.nanoseconds * 1e-9
-        if t >= self._tx_due:
-            self._tx_due = t + self._tx_period
-            flush_radio(self._tx, self._tx_pending, self._timer_clock)
+        self._radio.flush_if_due(now)
         if self._commands:
             msg = ForceBatch()
             msg.header.stamp = now.to_msg()
