@@ -302,7 +302,7 @@ class SimNode(Node):
         self._imu_t = 0.0
         self._wall0 = time.monotonic()
         self._sim0 = 0.0
-        self._free_running = p['real_time_factor'] <= 0.0
+        self._rtf = float(p['real_time_factor'])   # kept current by _on_set_parameters
         self._step_now = self.create_guard_condition(self._on_tick)
         self._observed = p['truth_subscribers'] <= 0
         self.create_timer(1.0 / p['clock_rate_hz'], self._on_tick)
@@ -368,7 +368,7 @@ class SimNode(Node):
         # agents' consensus rounds agreed 0.90 instead of 0.99). Only once every agent
         # has caught up: stepping whenever max_agent_lag_s allowed was no faster.
         lag = self.params['max_agent_lag_s']
-        if (self._free_running and lag > 0
+        if (self._rtf <= 0.0 and lag > 0
                 and self._steps_agents_allow() >= int(lag / self.dt + 1e-9)):
             self._step_now.trigger()
 
@@ -446,7 +446,7 @@ class SimNode(Node):
                 self._start_wall(float(param.value), self.t)
             elif param.name == 'real_time_factor':
                 self._wall0, self._sim0 = time.monotonic(), self.t
-                self._free_running = float(param.value) <= 0.0
+                self._rtf = float(param.value)
         return SetParametersResult(successful=True)
 
     def _start_wall(self, speed: float, t: float) -> None:
@@ -458,7 +458,7 @@ class SimNode(Node):
 
     # -- stepping
     def _on_tick(self) -> None:
-        rtf = float(self.get_parameter('real_time_factor').value)
+        rtf = self._rtf
         if rtf > 0:
             target = self._sim0 + (time.monotonic() - self._wall0) * rtf
             steps = int((target - self.t) / self.dt)
@@ -574,16 +574,16 @@ class SimNode(Node):
             if batch is not None:
                 batch.update(imu_ids=[self.ids[i] for i in living], imu_accel=accel[living],
                              imu_noise_std=self.imu.noise_std)
-                living = []
-            for i in living:
-                msg = Imu()
-                msg.header.stamp = stamp
-                msg.header.frame_id = 'map'
-                msg.linear_acceleration.x = float(accel[i, 0])
-                msg.linear_acceleration.y = float(accel[i, 1])
-                msg.linear_acceleration_covariance[0] = self.imu.noise_std ** 2
-                msg.linear_acceleration_covariance[4] = self.imu.noise_std ** 2
-                self.imu_pubs[self.ids[i]].publish(msg)
+            else:
+                for i in living:
+                    msg = Imu()
+                    msg.header.stamp = stamp
+                    msg.header.frame_id = 'map'
+                    msg.linear_acceleration.x = float(accel[i, 0])
+                    msg.linear_acceleration.y = float(accel[i, 1])
+                    msg.linear_acceleration_covariance[0] = self.imu.noise_std ** 2
+                    msg.linear_acceleration_covariance[4] = self.imu.noise_std ** 2
+                    self.imu_pubs[self.ids[i]].publish(msg)
         if self._due_now('gps', 'gps_rate_hz'):
             for i in np.flatnonzero(self.alive & self.is_beacon):
                 fix, std = self.gps.measure(pos[i])
