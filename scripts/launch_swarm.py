@@ -149,6 +149,14 @@ def _fault_time(flag: str, spec: str, when: str, example: str) -> float:
     return t
 
 
+def check_before_end(flag: str, times, duration: float) -> None:
+    """Refuse a fault or setting ``flag`` timed at or after the end of the run."""
+    late = [t for t in times if t >= duration]
+    if late:
+        raise LaunchError(f'{flag} at {max(late):g} s comes after the end of the run '
+                          f'(--duration {duration:g}); set it earlier or raise --duration')
+
+
 def parse_robot_fault(flag: str, spec: str, n_agents: int) -> tuple[float, list[int]]:
     """``--remove``/``--radio-off``/``--radio-on`` ``T:IDS`` as (time, ids), checked."""
     when, sep, ids = spec.partition(':')
@@ -253,20 +261,15 @@ def validate(args: argparse.Namespace):
         raise LaunchError(f'{flag} acts from the host that runs the sim; '
                           'drop it from the --agents-only command')
     args.sim_settings = sorted(parse_set_sim(s) for s in args.set_sim)
-    args.robot_faults = sorted(
-        (*parse_robot_fault(flag, spec, args.agents), topic)
-        for flag, topic, specs in (('--remove', '/swarm/kill', args.remove),
-                                   ('--radio-off', '/swarm/radio_off', args.radio_off),
-                                   ('--radio-on', '/swarm/radio_on', args.radio_on))
-        for spec in specs)
-    if args.sim_settings and args.sim_settings[-1][0] >= args.duration:
-        raise LaunchError(f'--set-sim at {args.sim_settings[-1][0]:g} s comes after the end '
-                          f'of the run (--duration {args.duration:g}); set it earlier or '
-                          'raise --duration')
-    late = [t for t, *_ in args.robot_faults if t >= args.duration]
-    if late:
-        raise LaunchError(f'a fault at {late[0]:g} s comes after the end of the run '
-                          f'(--duration {args.duration:g}); set it earlier or raise --duration')
+    check_before_end('--set-sim', [t for t, _, _ in args.sim_settings], args.duration)
+    robot_faults = []
+    for flag, topic, specs in (('--remove', '/swarm/kill', args.remove),
+                               ('--radio-off', '/swarm/radio_off', args.radio_off),
+                               ('--radio-on', '/swarm/radio_on', args.radio_on)):
+        parsed = [parse_robot_fault(flag, spec, args.agents) for spec in specs]
+        check_before_end(flag, [t for t, _ in parsed], args.duration)
+        robot_faults += [(t, ids, topic) for t, ids in parsed]
+    args.robot_faults = sorted(robot_faults)
     if not 0.0 <= args.min_duration <= args.duration:
         raise LaunchError(f'--min-duration {args.min_duration:g} must be within 0 and '
                           f'--duration {args.duration:g}')
@@ -297,10 +300,7 @@ def validate(args: argparse.Namespace):
                              half_size=args.half_size, obstacles=list(shape.obstacles))
     except (ShapeError, PartitionError, RobotTypeError, ValueError) as exc:
         raise LaunchError(str(exc)) from exc
-    if args.obstacle_moves and args.obstacle_moves[-1][0] >= args.duration:
-        raise LaunchError(f'--move-obstacle at {args.obstacle_moves[-1][0]:g} s comes after '
-                          f'the end of the run (--duration {args.duration:g}); set it '
-                          'earlier or raise --duration')
+    check_before_end('--move-obstacle', [t for t, _ in args.obstacle_moves], args.duration)
     return shape, counts, beacons, fleet
 
 
