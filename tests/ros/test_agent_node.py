@@ -1,4 +1,5 @@
-"""agent_node in-process: it speaks DSDV on /radio/tx, takes goals, and reports state."""
+"""agent_node in-process: it speaks DSDV on /radio/tx, takes goals and proximity scans,
+and reports state."""
 
 from __future__ import annotations
 
@@ -98,4 +99,51 @@ def test_a_rate_of_zero_is_refused_with_its_name(rate):
             AgentNode('agent', namespace='/agent_1', context=context,
                       parameter_overrides=[Parameter(rate, value=0.0)])
     finally:
+        rclpy.try_shutdown(context=context)
+
+
+def test_proximity_scans_reach_the_brain_and_a_malformed_one_is_dropped():
+    from builtin_interfaces.msg import Time
+
+    from swarm_agent.conversions import proximity_to_msg
+    from swarm_msgs.msg import ProximityArray
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    executor = SingleThreadedExecutor(context=context)
+    agent = AgentNode('agent', namespace='/agent_3', context=context,
+                      parameter_overrides=[Parameter('agent_id', value=3)])
+    probe = rclpy.create_node('probe', context=context)
+    executor.add_node(agent)
+    executor.add_node(probe)
+    pub = probe.create_publisher(ProximityArray, '/agent_3/proximity', QoSProfile(**qos.SENSOR))
+    try:
+        deadline = time.monotonic() + 20.0
+        while agent.brain._proximity is None and time.monotonic() < deadline:
+            pub.publish(proximity_to_msg(Time(sec=1), 3, [[1.0, -0.5]], [0.45], 0.02))
+            executor.spin_once(timeout_sec=0.05)
+        assert agent.brain._proximity is not None, 'no scan reached the brain'
+        offsets, radii = agent.brain._proximity
+        assert offsets.tolist() == [[1.0, -0.5]] and radii.tolist() == [0.45]
+        # Stamped on the agent's clock, as ranges are.
+        assert abs(agent.brain._proximity_at - agent._now()) < 5.0
+
+        lines = []
+
+        class Logger:
+            def error(self, text, **kwargs):
+                lines.append((text, kwargs))
+
+        agent.get_logger = Logger   # the node's logger, for this one call
+        at = agent.brain._proximity_at
+        agent.on_proximity_array(ProximityArray(receiver=3, x=[1.0], y=[2.0], radius=[]))
+        del agent.get_logger
+        assert agent.brain._proximity_at == at and agent.brain._proximity is not None
+        ((text, kwargs),) = lines
+        assert 'proximity' in text and '1 x, 1 y and 0 radius' in text
+        assert kwargs.get('throttle_duration_sec', 0) > 0
+    finally:
+        executor.shutdown()
+        agent.destroy_node()
+        probe.destroy_node()
         rclpy.try_shutdown(context=context)

@@ -112,11 +112,17 @@ def test_every_clock_advance_is_answered_by_every_agent(tmp_path):
 
 def test_a_composed_process_takes_its_agents_inputs_from_one_sensor_batch(tmp_path):
     """sensor_batch: the world's one message per step reaches each agent's brain."""
-    from swarm_agent.conversions import sensor_batch_to_msg
+    from swarm_agent.conversions import proximity_to_msg, sensor_batch_to_msg
     from swarm_agent.mesh_messages import NeighbourInfo
     from swarm_agent.packet import BROADCAST, Kind, Packet
     from swarm_agent.wire import encode_heartbeat
-    from swarm_msgs.msg import ForceBatch, RangeArray, RangeMeasurement, SensorBatch
+    from swarm_msgs.msg import (
+        ForceBatch,
+        ProximityArray,
+        RangeArray,
+        RangeMeasurement,
+        SensorBatch,
+    )
 
     robots = [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 2, False, 5.0, 0.0),
               RobotSpec(2, 3, False, 9.0, 0.0)]
@@ -129,10 +135,11 @@ def test_a_composed_process_takes_its_agents_inputs_from_one_sensor_batch(tmp_pa
         probe.create_subscription(ForceBatch, '/swarm/cmd_batch', commands.append,
                                   QoSProfile(**qos.COMMAND_BATCH))
         agent1, agent2 = container.agents[1], container.agents[2]
-        # Nothing per robot: the agents have no imu, ranges, radio/rx or cmd_force topics
-        # and their commands leave in batches (the first one holds every agent's).
+        # Nothing per robot: the agents have no imu, ranges, proximity, radio/rx or
+        # cmd_force topics and their commands leave in batches (the first one holds every
+        # agent's).
         topics = {name for name, _ in probe.get_topic_names_and_types()}
-        assert not any(t.endswith(('/imu', '/ranges', '/radio/rx', '/cmd_force'))
+        assert not any(t.endswith(('/imu', '/ranges', '/proximity', '/radio/rx', '/cmd_force'))
                        for t in topics), topics
         assert spin_until(executor, lambda: bool(commands), 10.0)
         first = commands[0]
@@ -144,10 +151,15 @@ def test_a_composed_process_takes_its_agents_inputs_from_one_sensor_batch(tmp_pa
             Time(sec=3), imu_ids=[2], imu_accel=[[2.0, 0.0]], imu_noise_std=0.01,
             ranges=[RangeArray(receiver=1, ranges=[RangeMeasurement(
                 beacon_id=0, range=4.5, stddev=0.1)])],
+            proximity=[proximity_to_msg(Time(sec=3), 1, [[4.0, 0.0]], [0.6], 0.02),
+                       ProximityArray(receiver=2, x=[1.0], y=[], radius=[])],  # malformed
             rx=[(3.0, heartbeat, [1])]))
         assert spin_until(executor, lambda: 0 in agent1.brain.neighbours, 10.0)
         assert agent1.brain.neighbours[0].info == info          # radio delivery
         assert agent1.brain._ranges == [(0, 4.5, 0.1)]          # ranges
+        offsets, radii = agent1.brain._proximity                # proximity
+        assert offsets.tolist() == [[4.0, 0.0]] and radii.tolist() == [0.6]
+        assert agent2.brain._proximity is None                  # its scan was dropped
         assert 0 not in agent2.brain.neighbours                 # only its receiver's
         batch.publish(sensor_batch_to_msg(Time(sec=4), imu_ids=[2], imu_accel=[[2.0, 0.0]]))
         assert spin_until(

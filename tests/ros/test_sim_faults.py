@@ -4,7 +4,8 @@ Robots a few metres apart and no agents (the world is not held for them). Run-ti
 parameters, set by a parameter client as the launcher's: a range cut, packet loss and a
 sweeping wall; the medium's links and drop counters follow, and bad values are refused
 with the reason. Fault topics: a radio off and on, an obstacle moved (bodies and radio
-shadow), bad commands ignored; the markers follow. A composed process's ForceBatch.
+shadow), bad commands ignored; the markers follow. A composed process's ForceBatch. The
+proximity scans, per robot and in the sensor batch, and their parameters.
 """
 
 from __future__ import annotations
@@ -208,3 +209,91 @@ def test_the_world_takes_a_composed_process_commands_in_one_batch(tmp_path):
         assert _until(executor, lambda: sim.forces[0, 0] == 0.5)
         assert sim.forces[1].tolist() == [0.0, -2.0]       # the malformed ones were dropped
         assert np.isfinite(sim.force_stamp).all()
+
+
+def _seconds(msg) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def test_the_world_publishes_each_robots_proximity_scan(tmp_path):
+    """/agent_K/proximity at proximity_rate_hz: robots 0 and 1 (2 m apart) see each other,
+    robot 2 (10 m off) gets empty scans; a removed robot neither sees nor is seen."""
+    from rclpy.qos import QoSProfile
+    from std_msgs.msg import Int32MultiArray
+
+    from swarm_agent.conversions import proximity_from_msg
+    from swarm_mission import qos
+    from swarm_msgs.msg import ProximityArray
+
+    robots = [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 3, True, 2.0, 0.0),
+              RobotSpec(2, 1, False, 12.0, 0.0)]
+    with _world(tmp_path, robots) as (executor, sim, probe):
+        scans = {i: [] for i in range(3)}
+        for i in range(3):
+            probe.create_subscription(ProximityArray, f'/agent_{i}/proximity',
+                                      scans[i].append, QoSProfile(**qos.SENSOR))
+        assert _until(executor, lambda: all(len(s) >= 3 for s in scans.values()))
+        radius = {r: sim.types[r].coverage_radius for r in (1, 3)}
+        for i, (offset, seen_radius) in ((0, ((2.0, 0.0), radius[3])),
+                                         (1, ((-2.0, 0.0), radius[1]))):
+            msg = scans[i][-1]
+            assert msg.receiver == i and msg.stddev == 0.02
+            offsets, radii = proximity_from_msg(msg)
+            np.testing.assert_allclose(offsets, [offset], atol=0.1)
+            assert radii.tolist() == [seen_radius]
+        assert all(len(m.x) == 0 and m.receiver == 2 for m in scans[2])
+        # Scans are stamped at 10 Hz of sim time (best effort: one may be dropped).
+        steps = np.diff([_seconds(m) for m in scans[0]]) / 0.1
+        assert steps.min() > 0.5 and np.allclose(steps, np.round(steps), atol=1e-4)
+
+        kill = probe.create_publisher(Int32MultiArray, '/swarm/kill', 10)
+        kill.publish(Int32MultiArray(data=[1]))
+        assert _until(executor, lambda: not sim.alive[1])
+        killed_at = sim.t
+
+        def after(i):
+            return [m for m in scans[i] if _seconds(m) > killed_at + 1e-6]
+
+        assert _until(executor, lambda: len(after(0)) >= 3)
+        assert not after(1) and all(len(m.x) == 0 for m in after(0))
+
+
+def test_a_composed_world_sends_proximity_in_its_sensor_batch(tmp_path):
+    """sensor_batch: the scans travel in /swarm/sensor_batch, not on per-robot topics."""
+    from rclpy.qos import QoSProfile
+
+    from swarm_agent.conversions import proximity_from_msg, sensor_batch_from_msg
+    from swarm_mission import qos
+    from swarm_msgs.msg import SensorBatch
+
+    robots = [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 2, True, 0.0, 2.5)]
+    with _world(tmp_path, robots, sensor_batch=True) as (executor, sim, probe):
+        batches = []
+        probe.create_subscription(SensorBatch, '/swarm/sensor_batch', batches.append,
+                                  QoSProfile(**qos.RADIO))
+        assert _until(executor, lambda: sum(len(b.proximity) > 0 for b in batches) >= 2)
+        topics = {name for name, _ in probe.get_topic_names_and_types()}
+        assert not any(t.endswith('/proximity') for t in topics), topics
+        _, _, scans, _ = sensor_batch_from_msg(next(b for b in batches if b.proximity))
+        assert sorted(s.receiver for s in scans) == [0, 1]
+        by_id = {s.receiver: proximity_from_msg(s) for s in scans}
+        np.testing.assert_allclose(by_id[0][0], [[0.0, 2.5]], atol=0.1)
+        np.testing.assert_allclose(by_id[1][0], [[0.0, -2.5]], atol=0.1)
+
+
+@pytest.mark.parametrize(('name', 'value'), [('proximity_rate_hz', -1.0),
+                                             ('proximity_range_m', 0.0),
+                                             ('proximity_std', math.nan)])
+def test_a_bad_proximity_setting_is_refused_with_its_name(tmp_path, name, value):
+    with pytest.raises(ValueError, match=f'parameter {name} must be a finite number.*'
+                                         f'-p {name}:='):
+        with _world(tmp_path, THREE, **{name: value}):
+            pass
+
+
+def test_a_proximity_rate_of_zero_turns_the_sensor_off(tmp_path):
+    with _world(tmp_path, THREE, proximity_rate_hz=0.0) as (executor, sim, probe):
+        assert sim.proximity is None and not sim.proximity_pubs
+        assert _until(executor, lambda: sim.t > 0.5)
+        topics = {name for name, _ in probe.get_topic_names_and_types()}
+        assert not any(t.endswith('/proximity') for t in topics), topics

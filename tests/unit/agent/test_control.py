@@ -27,7 +27,7 @@ from swarm_agent.lqr import (
     step_response,
     VelocityLoop,
 )
-from swarm_agent.setpoint import SetpointParams, velocity_setpoint
+from swarm_agent.setpoint import avoid_collisions, SetpointParams, velocity_setpoint
 from swarm_mission.robot_types import GRAVITY, load_robot_types, LqrDesign, RobotType
 
 TYPES = load_robot_types()
@@ -192,20 +192,105 @@ def test_setpoint_saturates_at_half_a_metre_per_second():
     path = np.array([[0.0, 0.0], [0.0, 0.5], [10.0, 0.5]])
     v = velocity_setpoint(path[0], path[-1], params, waypoints=path)
     np.testing.assert_allclose(v, [0.0, V_MAX], atol=1e-12)
-    # Crowded by neighbours on every side and an obstacle: still at most 0.5 m/s.
+    # Crowded by neighbours on every side: still at most 0.5 m/s.
     ring = np.array([[np.cos(a), np.sin(a)] for a in np.linspace(0, 5, 6)]) * 0.35
-    crowded = velocity_setpoint([0.0, 0.0], [30.0, 0.0], params, neighbours=ring,
-                                neighbour_radii=np.full(6, 0.3), own_radius=0.5,
-                                obstacle_samples=[[0.2, 0.0]])
+    crowded = avoid_collisions(far, ring, np.full(6, 0.3), 0.5, params)
     assert np.hypot(*crowded) <= V_MAX + 1e-12
 
 
-def test_setpoint_steers_away_from_a_close_neighbour():
+# -- collision avoidance: the safety filter of swarm_agent.setpoint
+
+def _gap_bounds(v, offsets, radii, own, params):
+    """u_j . v - (rate / 2) h_j for every neighbour: <= 0 means the constraint holds."""
+    d = np.linalg.norm(offsets, axis=1)
+    gap = d - (own + radii + params.avoid_buffer)
+    return (offsets / d[:, None]) @ v - 0.5 * params.avoid_rate * gap
+
+
+def test_filter_leaves_free_motion_alone_and_bounds_the_closing_speed():
+    params = SetpointParams(swerve=0.0)
+    v = np.array([0.5, 0.0])
+    # Nobody near, or a neighbour behind: unchanged.
+    np.testing.assert_array_equal(avoid_collisions(v, np.zeros((0, 2)), [], 0.3, params), v)
+    np.testing.assert_array_equal(avoid_collisions(v, [[-0.7, 0.0]], [0.3], 0.3, params), v)
+    # A neighbour ahead 0.5 m beyond the buffer: closing speed rate/2 * 0.5 = 0.25 m/s.
+    ahead = [[0.3 + 0.3 + params.avoid_buffer + 0.5, 0.0]]
+    np.testing.assert_allclose(avoid_collisions(v, ahead, [0.3], 0.3, params),
+                               [0.5 * params.avoid_rate * 0.5, 0.0], atol=1e-12)
+    # Motion across the line to the neighbour is free.
+    across = np.array([0.0, 0.4])
+    np.testing.assert_allclose(avoid_collisions(across, ahead, [0.3], 0.3, params), across)
+
+
+def test_a_parked_robot_yields_to_a_neighbour_inside_the_buffer():
     params = SetpointParams()
-    v = velocity_setpoint([0.0, 0.0], [0.0, 0.0], params, neighbours=[[0.5, 0.0]],
-                          neighbour_radii=[0.15], own_radius=0.15)
-    push = params.avoid_gain * (0.15 + 0.15 + params.avoid_margin - 0.5) / params.avoid_margin
-    np.testing.assert_allclose(v, [-push, 0.0], atol=1e-12)
+    inside = 0.15 + 0.15 + params.avoid_buffer - 0.2      # 0.2 m inside the buffer
+    v = avoid_collisions(np.zeros(2), [[0.0, inside]], [0.15], 0.15, params)
+    np.testing.assert_allclose(v, [0.0, -0.5 * params.avoid_rate * 0.2], atol=1e-9)
+    # At the buffer's edge it stays parked.
+    edge = [[0.0, 0.15 + 0.15 + params.avoid_buffer + 0.01]]
+    assert not avoid_collisions(np.zeros(2), edge, [0.15], 0.15, params).any()
+
+
+def test_filter_is_the_closest_safe_velocity():
+    """The exact two-variable QP: never worse than SLSQP on random cases."""
+    from scipy.optimize import minimize
+    params = SetpointParams(swerve=0.0, v_max=10.0)
+    rng = np.random.default_rng(3)
+    for _ in range(30):
+        k = rng.integers(1, 5)
+        offsets = rng.uniform(-1.5, 1.5, (k, 2))
+        radii = rng.uniform(0.15, 0.5, k)
+        want = rng.uniform(-1.0, 1.0, 2)
+        got = avoid_collisions(want, offsets, radii, 0.3, params)
+        cons = {'type': 'ineq', 'fun': lambda v, *a: -_gap_bounds(v, *a),
+                'args': (offsets, radii, 0.3, params)}
+        best = minimize(lambda v, w: np.sum((v - w) ** 2), np.zeros(2), args=(want,),
+                        constraints=[cons],
+                        method='SLSQP', options={'ftol': 1e-12})
+        if not best.success:
+            continue
+        assert np.all(_gap_bounds(got, offsets, radii, 0.3, params) <= 1e-6)
+        assert np.sum((got - want) ** 2) <= best.fun + 1e-6
+
+
+def _drive(starts, goals, radii, params, seconds=60.0, dt=0.02):
+    """Kinematic robots under setpoint + filter with exact relative offsets: the
+    smallest gap beyond the summed radii, and where they end."""
+    p = np.array(starts, dtype=float)
+    radii = np.asarray(radii, dtype=float)
+    smallest = np.inf
+    for _ in range(int(seconds / dt)):
+        v = np.zeros_like(p)
+        for i in range(len(p)):
+            others = np.arange(len(p)) != i
+            want = velocity_setpoint(p[i], goals[i], params)
+            v[i] = avoid_collisions(want, p[others] - p[i], radii[others], radii[i], params)
+        p = p + dt * v
+        d = np.linalg.norm(p[0] - p[1])
+        smallest = min(smallest, d - radii[0] - radii[1])
+    return smallest, p
+
+
+def test_two_robots_meeting_head_on_pass_each_other_without_touching():
+    params = SetpointParams()
+    smallest, end = _drive([[0.0, 0.0], [10.0, 0.0]], [[10.0, 0.0], [0.0, 0.0]],
+                           [0.5, 0.3], params)
+    assert smallest > 0.0                       # coverage circles never overlap
+    np.testing.assert_allclose(end, [[10.0, 0.0], [0.0, 0.0]], atol=0.05)
+    # Without the swerve they stop in front of each other for good.
+    stuck, end = _drive([[0.0, 0.0], [10.0, 0.0]], [[10.0, 0.0], [0.0, 0.0]],
+                        [0.5, 0.3], SetpointParams(swerve=0.0))
+    assert stuck > 0.0 and end[0, 0] < 5.0
+
+
+def test_a_robot_goes_round_a_parked_one_on_its_path():
+    params = SetpointParams()
+    smallest, end = _drive([[0.0, 0.0], [5.0, 0.0]], [[10.0, 0.0], [5.0, 0.0]],
+                           [0.3, 0.5], params)
+    assert smallest > 0.0
+    np.testing.assert_allclose(end[0], [10.0, 0.0], atol=0.05)
+    assert np.linalg.norm(end[1] - [5.0, 0.0]) < 0.5     # pushed aside a little at most
 
 
 # -- artificial forces (3.2.1.1, eqs. 3.80-3.93)

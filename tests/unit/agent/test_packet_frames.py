@@ -81,7 +81,12 @@ def test_a_sensor_batch_carries_each_robots_part_of_a_step():
     from builtin_interfaces.msg import Time
     import numpy as np
 
-    from swarm_agent.conversions import sensor_batch_from_msg, sensor_batch_to_msg
+    from swarm_agent.conversions import (
+        proximity_from_msg,
+        proximity_to_msg,
+        sensor_batch_from_msg,
+        sensor_batch_to_msg,
+    )
     from swarm_msgs.msg import RangeArray, RangeMeasurement
 
     stamp = Time(sec=12, nanosec=500_000_000)
@@ -91,17 +96,24 @@ def test_a_sensor_batch_carries_each_robots_part_of_a_step():
     # Deliveries grouped by frame, in arrival order, as RadioMedium.deliver_grouped.
     (s0, f0), (s1, f1), (s2, f2) = frames
     grouped = [(s0, f0, [11, 4]), (s1, f1, [4]), (s2, f2, [11, 4, 9])]
+    scans = [proximity_to_msg(stamp, 4, [[1.5, -0.5]], [0.4], 0.02),
+             proximity_to_msg(stamp, 11, np.zeros((0, 2)), [], 0.02)]   # nobody near
     msg = sensor_batch_to_msg(stamp, imu_ids=[4, 9], imu_accel=np.array([[0.1, -0.2],
                                                                          [0.0, 0.3]]),
-                              imu_noise_std=0.01, ranges=ranges, rx=grouped)
-    imu, got_ranges, rx = sensor_batch_from_msg(msg)
+                              imu_noise_std=0.01, ranges=ranges, proximity=scans, rx=grouped)
+    imu, got_ranges, got_scans, rx = sensor_batch_from_msg(msg)
     assert imu == [(4, 0.1, -0.2), (9, 0.0, 0.3)] and msg.imu_noise_std == 0.01
     assert got_ranges[0].receiver == 4 and got_ranges[0].ranges[0].range == 3.5
+    assert [scan.receiver for scan in got_scans] == [4, 11]
+    offsets, radii = proximity_from_msg(got_scans[0])
+    assert offsets.tolist() == [[1.5, -0.5]] and radii.tolist() == [0.4]
+    offsets, radii = proximity_from_msg(got_scans[1])
+    assert offsets.shape == (0, 2) and radii.shape == (0,)
     assert rx == {4: frames, 9: frames[2:], 11: [frames[0], frames[2]]}
     # Each frame travels once, whatever the number of its receivers.
     assert len(msg.rx_frames) == 6 and len(msg.frames) == len(pack_frames(frames))
     empty = sensor_batch_to_msg(stamp)            # nothing due this step
-    assert sensor_batch_from_msg(empty) == ([], [], {})
+    assert sensor_batch_from_msg(empty) == ([], [], [], {})
     # Arrays that disagree, or a receiver's bytes cut short, are refused, never misread.
     every = [(s, f, [4]) for s, f in frames]
     short = sensor_batch_to_msg(stamp, rx=every)
@@ -120,3 +132,34 @@ def test_a_sensor_batch_carries_each_robots_part_of_a_step():
     lopsided.imu_ay = [0.2, 0.3]
     with pytest.raises(PacketError, match='1 imu ids but 1 x and 2 y'):
         sensor_batch_from_msg(lopsided)
+
+
+def test_a_proximity_scan_round_trips_and_a_lopsided_one_is_refused():
+    pytest.importorskip('swarm_msgs')
+    from builtin_interfaces.msg import Time
+    import numpy as np
+
+    from swarm_agent.conversions import (
+        proximity_from_msg,
+        proximity_to_msg,
+        SensorMessageError,
+    )
+
+    stamp = Time(sec=7, nanosec=250_000_000)
+    offsets = np.array([[0.5, -1.25], [-2.0, 0.125], [1e-3, 2.9]])
+    radii = np.array([0.3, 0.45, 0.6])
+    msg = proximity_to_msg(stamp, 42, offsets, radii, 0.02)
+    assert msg.header.stamp == stamp and msg.receiver == 42 and msg.stddev == 0.02
+    assert list(msg.x) == [0.5, -2.0, 1e-3] and list(msg.y) == [-1.25, 0.125, 2.9]
+    got_offsets, got_radii = proximity_from_msg(msg)
+    np.testing.assert_array_equal(got_offsets, offsets)
+    np.testing.assert_array_equal(got_radii, radii)
+    assert got_offsets.shape == (3, 2) and got_radii.shape == (3,)
+    # Arrays that disagree are refused with their lengths, never paired up wrongly.
+    msg.radius = [0.3, 0.45]
+    with pytest.raises(SensorMessageError, match='robot 42: 3 x, 3 y and 2 radius'):
+        proximity_from_msg(msg)
+    msg = proximity_to_msg(stamp, 42, offsets, radii, 0.02)
+    msg.y = [0.0]
+    with pytest.raises(ValueError, match='3 x, 1 y and 3 radius'):
+        proximity_from_msg(msg)

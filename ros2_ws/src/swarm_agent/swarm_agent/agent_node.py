@@ -6,6 +6,8 @@ Subscribed
   ``imu`` (sensor_msgs/Imu)                    accelerometer, map frame -> Kalman prediction
   ``gps`` (geometry_msgs/PoseWithCovarianceStamped)  absolute fix, beacons only
   ``ranges`` (swarm_msgs/RangeArray)           TOA ranges to beacon neighbours
+  ``proximity`` (swarm_msgs/ProximityArray)    neighbours' offsets and radii, measured
+                                               (collision avoidance)
   ``radio/rx`` (swarm_msgs/RadioPacketArray)   what this robot's radio heard (batches)
   ``pose`` (geometry_msgs/PoseStamped)         external (camera) pose, hardware mode only
   ``/swarm/shape`` (swarm_msgs/FormationShape) desired shape (transient local)
@@ -47,7 +49,9 @@ from swarm_agent.brain import BrainConfigError
 from swarm_agent.conversions import (
     frames_or_log,
     frames_to_msg,
+    proximity_from_msg,
     routes_to_msg,
+    SensorMessageError,
     snapshot_to_state,
     stamp_seconds,
 )
@@ -60,6 +64,7 @@ from swarm_msgs.msg import (
     AgentState,
     FormationShape,
     GoalArray,
+    ProximityArray,
     RadioPacketArray,
     RangeArray,
     RouteTable,
@@ -171,11 +176,12 @@ class AgentNode(Node):
         its owner calls ``on_control``, ``publish_state`` and ``publish_routes`` at the
         node's ``control_rate_hz``, ``state_rate_hz`` and ``routes_rate_hz``
         (composed_node: one timer of each drives every agent of the process). With
-        ``shared_inputs`` it subscribes to none of imu, ranges, radio/rx, shape and goals:
-        its owner hands them over (``on_imu_sample``, ``on_range_array``,
-        ``on_radio_frames``, ``on_shape``, ``on_goals``; composed_node with the world's
-        /swarm/sensor_batch). ``command_sink(agent id, stamp s, fx, fy)`` takes the force
-        commands instead of the cmd_force topic (composed_node: one ForceBatch per step)."""
+        ``shared_inputs`` it subscribes to none of imu, ranges, proximity, radio/rx, shape
+        and goals: its owner hands them over (``on_imu_sample``, ``on_range_array``,
+        ``on_proximity_array``, ``on_radio_frames``, ``on_shape``, ``on_goals``;
+        composed_node with the world's /swarm/sensor_batch). ``command_sink(agent id,
+        stamp s, fx, fy)`` takes the force commands instead of the cmd_force topic
+        (composed_node: one ForceBatch per step)."""
         super().__init__(node_name, namespace=namespace, **kwargs)
         for name, (default, text) in PARAMETERS.items():
             self.declare_parameter(name, default, ParameterDescriptor(description=text))
@@ -234,6 +240,8 @@ class AgentNode(Node):
         if not shared_inputs:
             lean_subscription(self, Imu, 'imu', self._on_imu, QoSProfile(**qos.IMU))
             lean_subscription(self, RangeArray, 'ranges', self.on_range_array, sensor)
+            lean_subscription(self, ProximityArray, 'proximity', self.on_proximity_array,
+                              sensor)
             lean_subscription(self, RadioPacketArray, 'radio/rx', self._on_radio, radio)
             lean_subscription(self, FormationShape, '/swarm/shape', self.on_shape, latched)
             lean_subscription(self, GoalArray, '/swarm/goals', self.on_goals, latched)
@@ -280,6 +288,17 @@ class AgentNode(Node):
         """TOA ranges to beacon neighbours (swarm_msgs/RangeArray)."""
         self.brain.on_ranges(self._now(),
                              [(r.beacon_id, r.range, r.stddev) for r in msg.ranges])
+
+    def on_proximity_array(self, msg: ProximityArray) -> None:
+        """Proximity scan: neighbours' offsets and radii (swarm_msgs/ProximityArray); a
+        malformed one is dropped with a throttled error line."""
+        try:
+            offsets, radii = proximity_from_msg(msg)
+        except SensorMessageError as exc:
+            self.get_logger().error(f'dropped a malformed scan on proximity: {exc}',
+                                    throttle_duration_sec=10.0)
+            return
+        self.brain.on_proximity(self._now(), offsets, radii)
 
     def _on_radio(self, msg: RadioPacketArray) -> None:
         self.on_radio_frames(stamp_seconds(msg.header.stamp),

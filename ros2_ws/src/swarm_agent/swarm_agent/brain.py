@@ -17,11 +17,16 @@ It combines the algorithms of thesis chapter 3 exactly as an agent runs them:
   that agreement can be checked. With ``forces`` there are no goals: the artificial
   forces of 3.2.1.1 act on the agent directly.
 - Control (3.2.4): a velocity setpoint (proportional to the distance, saturated at
-  0.5 m/s, plus collision avoidance) tracked by the LQR inner loop (eqs. 3.108-3.111).
+  0.5 m/s) tracked by the LQR inner loop (eqs. 3.108-3.111).
+- Collision avoidance (beyond the thesis): every command passes the safety filter of
+  ``setpoint.avoid_collisions``, recomputed whenever the proximity sensor reports
+  (10 Hz) or the outer loop runs. It acts on the neighbours' offsets measured by the
+  proximity sensor while they are fresh, and on their broadcast estimates otherwise.
+  A parked robot that a neighbour comes too close to yields, then returns to its goal.
 
-Inputs: ``on_imu``, ``on_gps``, ``on_ranges``, ``on_packet``, ``set_shape``,
-``set_goals``. Output: ``step(t)`` returns the packets to send and the force command;
-``snapshot()`` the estimate, mode and assignment for introspection.
+Inputs: ``on_imu``, ``on_gps``, ``on_ranges``, ``on_proximity``, ``on_packet``,
+``set_shape``, ``set_goals``. Output: ``step(t)`` returns the packets to send and the
+force command; ``snapshot()`` the estimate, mode and assignment for introspection.
 """
 
 from __future__ import annotations
@@ -50,7 +55,7 @@ from swarm_agent.mesh_messages import (
     NeighbourInfo,
 )
 from swarm_agent.packet import Kind, Packet
-from swarm_agent.setpoint import SetpointParams, velocity_setpoint
+from swarm_agent.setpoint import avoid_collisions, SetpointParams, velocity_setpoint
 from swarm_mission.contour import sample_boundary
 from swarm_mission.goals import Goal
 from swarm_mission.robot_types import load_robot_types, RobotType
@@ -90,6 +95,7 @@ class BrainConfig:
     settle_speed: float = 0.01           # m/s, eq. 4.1
     neighbour_stale_s: float = 3.0       # neighbour info older than this is ignored
     range_stale_s: float = 2.0           # TOA ranges older than this are not used
+    proximity_stale_s: float = 0.5       # proximity scans older than this are not used
     forces_contour_step: float = 0.05    # m, boundary sample spacing for the forces method
     forces_speed_per_newton: float = 0.002  # m/s per N: forces method setpoint scaling
     hold_radius: float = 0.3             # m: within this of the goal the agent parks
@@ -176,6 +182,11 @@ class AgentBrain:
         self._next_outer = 0.0
         self._next_localization = config.localization.period_s
         self._setpoint = np.zeros(2)
+        self._command = np.zeros(2)          # the setpoint after collision avoidance
+        self._avoid_due = True               # recompute _command at the next step
+        self._proximity: tuple[np.ndarray, np.ndarray] | None = None
+        self._proximity_at = -math.inf
+        self._yielding = False
         self._force = np.zeros(2)
         self._parked = False
         self._parked_since: float | None = None
@@ -249,6 +260,18 @@ class AgentBrain:
         self._ranges_at = t
         self._position_at_ranges = self.localizer.position.copy()
 
+    def on_proximity(self, t: float, offsets, radii) -> None:
+        """Proximity scan: neighbours' centres minus this robot's (k, 2, map frame, m)
+        and their coverage radii (k,). Rows that are not finite are dropped."""
+        offsets = np.asarray(offsets, dtype=float).reshape(-1, 2)
+        radii = np.asarray(radii, dtype=float).reshape(-1)
+        if len(offsets) != len(radii):
+            return
+        ok = np.isfinite(offsets).all(axis=1) & np.isfinite(radii) & (radii >= 0.0)
+        self._proximity = (offsets[ok], radii[ok])
+        self._proximity_at = t
+        self._avoid_due = True
+
     def on_packet(self, t: float, packet: Packet) -> None:
         """A packet heard on the radio: route it, and consume what is for this agent."""
         out = self.router.on_packet(t, packet)
@@ -278,16 +301,27 @@ class AgentBrain:
             self._next_outer = _next_tick(self._next_outer, t, self.config.outer_period_s)
             self._outer(t)
         self._outbox.extend(self.router.tick(t))
-        if self._parked:
+        if self._avoid_due:
+            self._avoid_due = False
+            offsets, radii = self._neighbour_offsets(t)
+            self._command = avoid_collisions(self._setpoint, offsets, radii,
+                                             self.robot.coverage_radius, self.config.setpoint)
+        if self._yielding and not self._command.any():
+            # The neighbour has gone: back to the goal, and park there again (the
+            # resume hysteresis is for localization noise, not for a real push).
+            self._yielding = self._parked = False
+        if self._parked and not self._command.any():
             if self._parked_since is None:
                 self._parked_since = t
             self._force = np.zeros(2)
         else:
+            # Moving, or parked and yielding to a neighbour that came too close.
+            self._yielding = self._parked
             self._parked_since = None
             if dt > 0.0:
-                self._force = self.loop.step(dt, self._setpoint, self.localizer.velocity)
+                self._force = self.loop.step(dt, self._command, self.localizer.velocity)
         packets, self._outbox = self._outbox, []
-        return BrainOutput(packets, self._force.copy(), self._setpoint.copy())
+        return BrainOutput(packets, self._force.copy(), self._command.copy())
 
     def snapshot(self) -> Snapshot:
         """The agent's current belief (for AgentState and metrics)."""
@@ -361,7 +395,8 @@ class AgentBrain:
 
     def _outer(self, t: float) -> None:
         """The 2 Hz loop: cost report, assignment, setpoint (3.2.2.2, 3.2.4)."""
-        neighbours = self._fresh_neighbours(t)
+        self._avoid_due = True
+        self._fresh_neighbours(t)
         if (self._parked_since is not None
                 and t - self._parked_since >= self.config.stand_still_after_s):
             self.localizer.stand_still()
@@ -374,11 +409,11 @@ class AgentBrain:
             # 3.1.3: head for the centre of the formation to meet beacons again.
             target = np.asarray(self.localizer.home, dtype=float)
             self._parked = False
-            self._setpoint = self._setpoint_towards(target, neighbours)
+            self._setpoint = self._setpoint_towards(target)
             return
         if self.config.method == 'forces':
             self._parked = False
-            self._setpoint = self._forces_setpoint(neighbours)
+            self._setpoint = self._forces_setpoint(t)
             return
         rnd = self._round(t)
         if rnd != self._last_round:
@@ -407,7 +442,7 @@ class AgentBrain:
             self._park()
             return
         self._parked = False
-        self._setpoint = self._setpoint_towards(target, neighbours)
+        self._setpoint = self._setpoint_towards(target)
 
     def _park(self) -> None:
         """Stop at the goal: zero setpoint, zero force, integral state cleared."""
@@ -455,34 +490,37 @@ class AgentBrain:
         self.rows_used = len(rows)
         self.stats['assignments'] += 1
 
-    def _neighbour_arrays(self, neighbours: dict[int, NeighbourInfo]
-                          ) -> tuple[np.ndarray, np.ndarray]:
+    def _neighbour_offsets(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Neighbours' centres minus this robot's (k, 2) and their radii (k,): measured
+        by the proximity sensor while its last scan is fresh, else from the neighbours'
+        broadcast estimates (off by both robots' localization errors)."""
+        if self._proximity is not None and \
+                t - self._proximity_at <= self.config.proximity_stale_s:
+            return self._proximity
+        neighbours = self._fresh_neighbours(t)
         if not neighbours:
             return np.zeros((0, 2)), np.zeros(0)
         pos = np.array([n.position for n in neighbours.values()], dtype=float)
         radii = np.array([self._radius_of(n.agent_type) for n in neighbours.values()])
-        return pos, radii
+        return pos - self.localizer.position, radii
 
     def _radius_of(self, agent_type: int) -> float:
         return self.config.type_radii.get(agent_type, self.robot.coverage_radius)
 
-    def _setpoint_towards(self, target: np.ndarray,
-                          neighbours: dict[int, NeighbourInfo]) -> np.ndarray:
+    def _setpoint_towards(self, target: np.ndarray) -> np.ndarray:
         position = self.localizer.position
         waypoints = None
         if self._graph is not None and np.hypot(*(target - position)) > 1e-6:
             waypoints = self._graph.path(position, target)
-        pos, radii = self._neighbour_arrays(neighbours)
-        return velocity_setpoint(position, target, self.config.setpoint, waypoints=waypoints,
-                                 neighbours=pos, neighbour_radii=radii,
-                                 own_radius=self.robot.coverage_radius)
+        return velocity_setpoint(position, target, self.config.setpoint, waypoints=waypoints)
 
-    def _forces_setpoint(self, neighbours: dict[int, NeighbourInfo]) -> np.ndarray:
+    def _forces_setpoint(self, t: float) -> np.ndarray:
         """Artificial forces (3.2.1.1) turned into a velocity setpoint."""
-        pos, radii = self._neighbour_arrays(neighbours)
+        offsets, radii = self._neighbour_offsets(t)
         position = self.localizer.position
         force = formation_force(position, self.localizer.velocity,
-                                _inside(self.shape, position), self._boundary, pos, radii,
+                                _inside(self.shape, position), self._boundary,
+                                position + offsets, radii,
                                 self.robot.coverage_radius, self._obstacle_samples,
                                 self.config.forces)
         v = force * self.config.forces_speed_per_newton

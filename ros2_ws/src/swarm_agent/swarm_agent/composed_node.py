@@ -67,9 +67,10 @@ SHARED = {
     'state_rate_hz': (2.0, "Rate of every agent's state topic"),
     'routes_rate_hz': (0.5, "Rate of every agent's routes topic"),
     'type_counts': ('', 'Swarm composition for local partitioning'),
-    'sensor_batch': (False, "Take every agent's imu, ranges and radio deliveries from the "
-                            "world's /swarm/sensor_batch (sim_node sensor_batch) and shape "
-                            'and goals through the container, instead of per-robot topics'),
+    'sensor_batch': (False, "Take every agent's imu, ranges, proximity and radio deliveries "
+                            "from the world's /swarm/sensor_batch (sim_node sensor_batch) and "
+                            'shape and goals through the container, instead of per-robot '
+                            'topics'),
 }
 
 
@@ -196,7 +197,7 @@ class ComposedAgents(Node):
     def _on_batch(self, msg: SensorBatch) -> None:
         """Hand each agent of this process its part of the world's step."""
         try:
-            imu, ranges, rx = sensor_batch_from_msg(msg)
+            imu, ranges, proximity, rx = sensor_batch_from_msg(msg)
         except PacketError as exc:
             self.get_logger().error(f'dropped a corrupt /swarm/sensor_batch: {exc}',
                                     throttle_duration_sec=10.0)
@@ -209,6 +210,9 @@ class ComposedAgents(Node):
         for array in ranges:
             if array.receiver in agents:
                 agents[array.receiver].on_range_array(array)
+        for array in proximity:
+            if array.receiver in agents:
+                agents[array.receiver].on_proximity_array(array)
         for agent_id, frames in rx.items():
             if agent_id in agents:
                 agents[agent_id].on_radio_frames(stamp, frames)

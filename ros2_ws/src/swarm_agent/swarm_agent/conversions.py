@@ -16,12 +16,17 @@ from swarm_agent.packet import pack_frames, Packet, PacketError, unpack_frames
 from swarm_msgs.msg import (
     AgentState,
     CostReport,
+    ProximityArray,
     RadioPacketArray,
     RangeArray,
     RouteEntry,
     RouteTable,
     SensorBatch,
 )
+
+
+class SensorMessageError(ValueError):
+    """A sensor message whose parallel arrays disagree in length."""
 
 
 def stamp_seconds(stamp: Time) -> float:
@@ -56,8 +61,37 @@ def frames_or_log(msg: RadioPacketArray, logger, topic: str) -> list[tuple[float
         return []
 
 
+def proximity_to_msg(stamp: Time, receiver: int, offsets, radii,
+                     stddev: float) -> ProximityArray:
+    """One robot's proximity scan -> swarm_msgs/ProximityArray. ``offsets`` (k, 2):
+    neighbour centres minus the receiver's (m, map frame); ``radii`` (k,) theirs (m)."""
+    offsets = np.asarray(offsets, dtype=float).reshape(-1, 2)
+    msg = ProximityArray()
+    msg.header.stamp = stamp
+    msg.receiver = int(receiver)
+    # array('d') is what rosidl keeps for float64[]: assigned without a per-item check.
+    msg.x = array('d', offsets[:, 0].tolist())
+    msg.y = array('d', offsets[:, 1].tolist())
+    msg.radius = array('d', np.asarray(radii, dtype=float).reshape(-1).tolist())
+    msg.stddev = float(stddev)
+    return msg
+
+
+def proximity_from_msg(msg: ProximityArray) -> tuple[np.ndarray, np.ndarray]:
+    """swarm_msgs/ProximityArray -> (offsets (k, 2), radii (k,)); SensorMessageError when
+    x, y and radius differ in length."""
+    if not len(msg.x) == len(msg.y) == len(msg.radius):
+        raise SensorMessageError(f'proximity of robot {msg.receiver}: {len(msg.x)} x, '
+                                 f'{len(msg.y)} y and {len(msg.radius)} radius values')
+    offsets = np.empty((len(msg.x), 2))
+    offsets[:, 0] = msg.x
+    offsets[:, 1] = msg.y
+    return offsets, np.array(msg.radius, dtype=float)
+
+
 def sensor_batch_to_msg(stamp: Time, *, imu_ids=(), imu_accel=None, imu_noise_std: float = 0.0,
                         ranges: Iterable[RangeArray] = (),
+                        proximity: Iterable[ProximityArray] = (),
                         rx: Sequence[tuple[float, Packet, Sequence[int]]] = ()
                         ) -> SensorBatch:
     """One step's sensor data and radio deliveries of many robots -> swarm_msgs/SensorBatch.
@@ -76,6 +110,7 @@ def sensor_batch_to_msg(stamp: Time, *, imu_ids=(), imu_accel=None, imu_noise_st
         msg.imu_ay = array('d', accel[:, 1].tolist())
         msg.imu_noise_std = float(imu_noise_std)
     msg.ranges = list(ranges)
+    msg.proximity = list(proximity)
     if rx:
         # Vectorised: one (receiver, frame index) pair per delivery, stably sorted by
         # receiver so that each receiver's frames stay in arrival order.
@@ -92,9 +127,12 @@ def sensor_batch_to_msg(stamp: Time, *, imu_ids=(), imu_accel=None, imu_noise_st
 
 def sensor_batch_from_msg(msg: SensorBatch) -> tuple[list[tuple[int, float, float]],
                                                      list[RangeArray],
+                                                     list[ProximityArray],
                                                      dict[int, list[tuple[float, Packet]]]]:
-    """swarm_msgs/SensorBatch -> (imu samples (id, ax, ay), range arrays, rx frames by
-    receiver). Raises PacketError when the arrays disagree or a frame is corrupt."""
+    """swarm_msgs/SensorBatch -> (imu samples (id, ax, ay), range arrays, proximity
+    arrays, rx frames by receiver). Raises PacketError when the imu or radio arrays
+    disagree or a frame is corrupt; each proximity array is checked by
+    ``proximity_from_msg`` when its agent takes it."""
     if not len(msg.imu_ax) == len(msg.imu_ay) == len(msg.imu_ids):
         raise PacketError(f'{len(msg.imu_ids)} imu ids but {len(msg.imu_ax)} x and '
                           f'{len(msg.imu_ay)} y accelerations')
@@ -111,7 +149,7 @@ def sensor_batch_from_msg(msg: SensorBatch) -> tuple[list[tuple[int, float, floa
     for receiver, count in zip(msg.rx_ids, msg.rx_counts):
         rx[int(receiver)] = [distinct[k] for k in refs[offset:offset + count]]
         offset += count
-    return imu, list(msg.ranges), rx
+    return imu, list(msg.ranges), list(msg.proximity), rx
 
 
 def snapshot_to_state(snap: Snapshot, stamp: Time | None = None,

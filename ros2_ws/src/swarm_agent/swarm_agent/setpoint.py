@@ -1,10 +1,21 @@
-"""Velocity setpoint generator of the outer loop (thesis 3.2.4, Fig. 3.32).
+"""Velocity setpoint generator of the outer loop (thesis 3.2.4, Fig. 3.32) and the
+collision-avoidance filter that every command passes through.
 
 The setpoint points along the path to the goal (the next waypoint of the visibility
 graph path) with a magnitude proportional to the remaining path length, saturated at
-``v_max`` (0.5 m/s in the thesis); collision-avoidance terms push away from neighbours
-whose coverage circles come closer than a safety margin, and from nearby obstacle
-samples, and the sum is saturated again.
+``v_max`` (0.5 m/s in the thesis).
+
+Collision avoidance (beyond the thesis's repulsive terms, which act on neighbours'
+broadcast estimates and let robots touch: ``avoid_collisions``) is a safety filter in
+the sense of control barrier functions: for each neighbour j at distance d_j along the
+unit vector u_j, with gap h_j = d_j - (r_i + r_j + buffer), the commanded velocity
+must satisfy u_j . v <= (rate / 2) h_j, so a pair can close its gap at most at
+``rate`` times the gap (each robot takes half) and never crosses h = 0 in continuous
+time; a robot inside the buffer (h_j < 0) must back away at (rate / 2) |h_j|. A
+parked robot (setpoint zero) therefore yields to one that comes too close. Before the
+filter, part of the speed towards a close neighbour is turned to the right
+(``swerve``): two robots meeting head-on, or a robot behind a parked one, would
+otherwise stop in front of each other for good.
 """
 
 from __future__ import annotations
@@ -16,13 +27,23 @@ import numpy as np
 
 @dataclass
 class SetpointParams:
-    """Outer-loop parameters (YAML defaults in swarm_agent/config/control.yaml)."""
+    """Outer-loop and avoidance parameters (defaults of agent_node's parameters)."""
 
     gain: float = 0.4            # 1/s: setpoint speed per metre of remaining path
     v_max: float = 0.5           # m/s, thesis 3.2.4
-    avoid_gain: float = 0.3      # m/s at the contact distance
-    avoid_margin: float = 0.3    # m beyond the summed coverage radii
+    avoid_rate: float = 1.0      # 1/s: a pair closes its gap at most this fast per metre
+    avoid_buffer: float = 0.3    # m kept free beyond the summed coverage radii
+    swerve: float = 0.5          # share of the speed towards a close neighbour turned right
     arrive_radius: float = 0.02  # m: closer than this, command zero
+
+    def __post_init__(self) -> None:
+        for name in ('gain', 'v_max', 'avoid_rate'):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f'setpoint parameter {name} must be positive, got '
+                                 f'{getattr(self, name)}')
+        if not self.avoid_buffer >= 0.0 or not 0.0 <= self.swerve <= 1.0:
+            raise ValueError(f'avoid_buffer must be >= 0 m and swerve in [0, 1], got '
+                             f'{self.avoid_buffer} and {self.swerve}')
 
 
 def _saturate(v: np.ndarray, v_max: float) -> np.ndarray:
@@ -30,10 +51,9 @@ def _saturate(v: np.ndarray, v_max: float) -> np.ndarray:
     return v * (v_max / speed) if speed > v_max else v
 
 
-def velocity_setpoint(position, goal, params: SetpointParams, *, waypoints=None,
-                      neighbours=None, neighbour_radii=None, own_radius: float = 0.0,
-                      obstacle_samples=None) -> np.ndarray:
-    """The 2-D velocity setpoint in m/s (map frame)."""
+def velocity_setpoint(position, goal, params: SetpointParams, *,
+                      waypoints=None) -> np.ndarray:
+    """The 2-D velocity setpoint towards the goal in m/s (map frame), before avoidance."""
     position = np.asarray(position, dtype=float)
     goal = np.asarray(goal, dtype=float)
     if waypoints is not None and len(waypoints) > 2:
@@ -45,23 +65,62 @@ def velocity_setpoint(position, goal, params: SetpointParams, *, waypoints=None,
         target = goal
     direction = target - position
     dist = float(np.hypot(*direction))
-    v = np.zeros(2)
     if remaining > params.arrive_radius and dist > 1e-9:
-        v = direction / dist * min(params.v_max, params.gain * remaining)
-    if neighbours is not None and len(neighbours):
-        offsets = position - np.asarray(neighbours, dtype=float).reshape(-1, 2)
-        d = np.linalg.norm(offsets, axis=1)
-        safe = own_radius + np.asarray(neighbour_radii, dtype=float) + params.avoid_margin
-        close = (d < safe) & (d > 1e-9)
-        if close.any():
-            push = (safe[close] - d[close]) / params.avoid_margin
-            v = v + params.avoid_gain * (offsets[close] / d[close, None] * push[:, None]).sum(0)
-    if obstacle_samples is not None and len(obstacle_samples):
-        offsets = position - np.asarray(obstacle_samples, dtype=float)
-        d = np.linalg.norm(offsets, axis=1)
-        safe = own_radius + params.avoid_margin
-        close = (d < safe) & (d > 1e-9)
-        if close.any():
-            push = (safe - d[close]) / params.avoid_margin
-            v = v + params.avoid_gain * (offsets[close] / d[close, None] * push[:, None]).mean(0)
-    return _saturate(v, params.v_max)
+        return direction / dist * min(params.v_max, params.gain * remaining)
+    return np.zeros(2)
+
+
+def avoid_collisions(velocity, offsets, radii, own_radius: float,
+                     params: SetpointParams) -> np.ndarray:
+    """``velocity`` (m/s) made safe with respect to neighbours at ``offsets`` (k, 2:
+    neighbour centre minus own centre, m) of coverage ``radii`` (k,); see the module
+    docstring. Returns the closest velocity to the swerved one that satisfies every
+    neighbour's constraint, saturated at ``v_max``."""
+    v = np.asarray(velocity, dtype=float).copy()
+    offsets = np.asarray(offsets, dtype=float).reshape(-1, 2)
+    if not len(offsets):
+        return v
+    d = np.hypot(offsets[:, 0], offsets[:, 1])
+    gap = d - (own_radius + np.asarray(radii, dtype=float) + params.avoid_buffer)
+    bound = 0.5 * params.avoid_rate * gap
+    # Only neighbours whose bound can bind at v_max matter (and none on top of us:
+    # no direction to keep).
+    near = (bound < params.v_max) & (d > 1e-9)
+    if not near.any():
+        return v
+    unit, bound = offsets[near] / d[near, None], bound[near]
+    if params.swerve > 0.0:
+        towards = unit @ v
+        closing = towards > 0.0
+        right = np.column_stack([unit[:, 1], -unit[:, 0]])
+        v = v + params.swerve * (towards[closing, None] * right[closing]).sum(axis=0)
+    return _saturate(_closest_feasible(v, unit, bound), params.v_max)
+
+
+def _closest_feasible(v: np.ndarray, normals: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """argmin |x - v| subject to normals @ x <= bounds (unit normals), in the plane.
+
+    Written out because it is exact and tiny: the optimum of a two-variable QP lies at
+    ``v`` itself, at the projection of ``v`` on one constraint line, or at the meeting
+    point of two lines; the candidates are checked at once. (A library QP solver costs
+    more than the whole filter, which runs 12 times a second per robot.) When no point
+    satisfies every constraint (boxed in on all sides), the candidate that violates
+    them least is returned.
+    """
+    excess = normals @ v - bounds
+    candidates = [v[None, :], v - np.maximum(excess, 0.0)[:, None] * normals]
+    i, j = np.triu_indices(len(bounds), 1)
+    if len(i):
+        det = normals[i, 0] * normals[j, 1] - normals[i, 1] * normals[j, 0]
+        ok = np.abs(det) > 1e-9
+        i, j, det = i[ok], j[ok], det[ok]
+        x = (bounds[i] * normals[j, 1] - bounds[j] * normals[i, 1]) / det
+        y = (normals[i, 0] * bounds[j] - normals[j, 0] * bounds[i]) / det
+        candidates.append(np.column_stack([x, y]))
+    points = np.vstack(candidates)
+    violation = np.max(points @ normals.T - bounds, axis=1)
+    feasible = violation <= 1e-9
+    if feasible.any():
+        distance = np.where(feasible, np.sum((points - v) ** 2, axis=1), np.inf)
+        return points[int(np.argmin(distance))]
+    return points[int(np.argmin(violation))]

@@ -2,7 +2,7 @@
 
 The agent brain's parking hysteresis and collision margins are sized for the 100 m
 simulation with its 2 m LPS noise (BrainConfig: park within 0.3 m of the goal, resume
-beyond 0.8 m; setpoint avoidance 0.3 m beyond the summed coverage radii, 0.5 m/s). In
+beyond 0.8 m; collision avoidance keeps 0.3 m beyond the summed coverage radii). In
 the hardware arena every goal is closer than 0.8 m and the goals of Table 5.1's robots
 are about 0.3 m apart, so with those values the robots never leave their start (parked)
 or are pushed off their goals by their neighbours. A camera pose is good to about 1 cm,
@@ -40,8 +40,8 @@ PARAMETERS = {
     'resume_radius': (0.06, 'A parked robot moves again beyond this distance, m'),
     'setpoint_gain': (0.4, 'Setpoint speed per metre of remaining path, 1/s (3.2.4)'),
     'setpoint_v_max': (0.035, 'Setpoint speed limit, m/s (the bridge max_speed)'),
-    'avoid_gain': (0.02, 'Avoidance speed at contact of the coverage circles, m/s'),
-    'avoid_margin': (0.04, 'Avoidance acts this far beyond the summed coverage radii, m'),
+    'avoid_rate': (1.0, 'A pair closes its gap at most this fast per metre of gap, 1/s'),
+    'avoid_buffer': (0.02, 'Gap kept free beyond the summed coverage radii, m'),
     'arrive_radius': (0.005, 'Closer than this to the goal the setpoint is zero, m'),
     'velocity_window': (0.5, 'Camera displacement over this many seconds is the velocity'),
 }
@@ -62,8 +62,8 @@ class HwAgentNode(AgentNode):
         config.hold_radius = p['hold_radius']
         config.resume_radius = p['resume_radius']
         config.setpoint = SetpointParams(
-            gain=p['setpoint_gain'], v_max=p['setpoint_v_max'], avoid_gain=p['avoid_gain'],
-            avoid_margin=p['avoid_margin'], arrive_radius=p['arrive_radius'])
+            gain=p['setpoint_gain'], v_max=p['setpoint_v_max'], avoid_rate=p['avoid_rate'],
+            avoid_buffer=p['avoid_buffer'], arrive_radius=p['arrive_radius'])
         self._window = p['velocity_window']
         self._poses: deque[tuple[float, float, float]] = deque()
         self.get_logger().info(f'arena distances: park {p["hold_radius"]} m, resume '

@@ -9,7 +9,7 @@ trial takes seconds.
 One control step (``control_dt``, 50 Hz by default) does, in order: every living brain
 steps (inner LQR loop; outer loop at 2 Hz; localization every 3 s) and hands its packets
 to the medium; the dynamics integrate the forces; the medium delivers due packets; the
-IMU, range and GPS models feed the brains.
+IMU, range, GPS and proximity models feed the brains.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from swarm_mission.shapes import Shape
 from swarm_sim.fleet import random_fleet, RobotSpec
 from swarm_sim.medium import MediumConfig, RadioMedium
 from swarm_sim.metrics import belief_metrics, inside_mask, run_metrics, SETTLE_SPEED
-from swarm_sim.sensors import GpsModel, ImuModel
+from swarm_sim.sensors import GpsModel, ImuModel, ProximityModel
 
 METHODS = ('bubble', 'fractal', 'forces')
 
@@ -53,6 +53,7 @@ class Scenario:
     imu_period_s: float = 0.02            # IMU sample period (mean acceleration over it)
     range_period_s: float = 1.0           # TOA ranging rate
     gps_period_s: float = 1.0             # beacon GPS rate
+    proximity_period_s: float = 0.1       # proximity sensor rate (10 Hz); 0: no sensor
     record_period_s: float = 0.5          # truth recording rate (2 Hz)
     settle_hold_s: float = 5.0            # stop after this long settled (after the last change)
     localization_period_s: float = 3.0
@@ -121,6 +122,8 @@ class HeadlessSwarm:
         self.medium = RadioMedium(scenario.medium, self.rng, obstacles)
         self.imu = ImuModel(self.n, self.rng)
         self.gps = GpsModel(self.rng)
+        self.proximity = ProximityModel(self.rng)
+        self.radii = np.array([self.types[r.type].coverage_radius for r in fleet])
         self.brains: list[AgentBrain | None] = [
             make_brain(agent_id=r.id, agent_type=r.type, is_beacon=r.is_beacon,
                        method=scenario.method, initial_position=(r.x, r.y),
@@ -172,7 +175,7 @@ class HeadlessSwarm:
         steps = int(round(sc.duration_s / dt))
         every = {name: max(1, int(round(period / dt))) for name, period in (
             ('medium', sc.medium_update_s), ('range', sc.range_period_s),
-            ('imu', sc.imu_period_s),
+            ('imu', sc.imu_period_s), ('proximity', sc.proximity_period_s or dt),
             ('gps', sc.gps_period_s), ('record', sc.record_period_s))}
         rec: dict[str, list] = {k: [] for k in (
             'times', 'positions', 'velocities', 'estimates', 'modes', 'alive', 'goal_ids',
@@ -225,6 +228,11 @@ class HeadlessSwarm:
                 for i, brain in enumerate(self.brains):
                     if brain is not None and not self.is_beacon[i]:
                         brain.on_ranges(t, self.medium.toa_ranges(self.ids[i], beacon_ids))
+            if sc.proximity_period_s > 0 and k % every['proximity'] == 0:
+                scan = self.proximity.measure(self.dynamics.positions, self.radii, self.alive)
+                for i, brain in enumerate(self.brains):
+                    if brain is not None:
+                        brain.on_proximity(t, *scan.of(i))
             if k % every['gps'] == 0:
                 for i, brain in enumerate(self.brains):
                     if brain is not None and self.is_beacon[i]:

@@ -20,11 +20,13 @@ Topics
              ``/agent_K/imu`` (sensor_msgs/Imu, map-frame acceleration with bias + noise)
              ``/agent_K/gps`` (geometry_msgs/PoseWithCovarianceStamped, beacons only)
              ``/agent_K/ranges`` (swarm_msgs/RangeArray, TOA ranges to beacon neighbours)
+             ``/agent_K/proximity`` (swarm_msgs/ProximityArray, the neighbours within
+             ``proximity_range_m``: offsets and coverage radii, ``proximity_rate_hz``)
              ``/agent_K/radio/rx`` (swarm_msgs/RadioPacketArray, what the medium
              delivered to the robot since the last batch, ``radio_rate_hz``)
              ``/swarm/sensor_batch`` (swarm_msgs/SensorBatch: with ``sensor_batch``,
-             every robot's imu, ranges and radio deliveries of a step in one message,
-             in place of the three per-robot topics above; for composed agents)
+             every robot's imu, ranges, proximity and radio deliveries of a step in one
+             message, in place of the four per-robot topics above; for composed agents)
              ``/swarm/truth`` (swarm_msgs/SwarmTruth, for metrics only)
              ``/swarm/markers`` (visualization_msgs/MarkerArray for RViz, built by
              ``swarm_sim.markers``: robots by type and mode, goals, shape, obstacles,
@@ -80,6 +82,7 @@ from swarm_agent.agent_node import lean_publisher, lean_subscription
 from swarm_agent.conversions import (
     frames_or_log,
     frames_to_msg,
+    proximity_to_msg,
     sensor_batch_to_msg,
     stamp_seconds,
 )
@@ -94,6 +97,7 @@ from swarm_msgs.msg import (
     ForceBatch,
     FormationShape,
     GoalArray,
+    ProximityArray,
     RadioPacketArray,
     RangeArray,
     RangeMeasurement,
@@ -103,7 +107,7 @@ from swarm_msgs.msg import (
 from swarm_sim.fleet import FleetError, load_fleet
 from swarm_sim.markers import swarm_markers
 from swarm_sim.medium import MediumConfig, RadioMedium, RUNTIME_SETTINGS, SweepingWall
-from swarm_sim.sensors import GpsModel, ImuModel
+from swarm_sim.sensors import GpsModel, ImuModel, ProximityModel
 
 PARAMETERS = {
     'fleet_file': ('', 'Fleet YAML: robots with id, type, beacon, x, y, yaw'),
@@ -117,10 +121,13 @@ PARAMETERS = {
     'gps_std': (2.0, 'GPS noise per axis (m), thesis 4.2'),
     'range_rate_hz': (1.0, 'TOA ranging rate per simulated second'),
     'radio_rate_hz': (20.0, 'Radio delivery batches per simulated second, per robot'),
-    'sensor_batch': (False, 'Publish imu, ranges and radio deliveries of every robot in one '
-                            '/swarm/sensor_batch per step and take force commands from '
-                            '/swarm/cmd_batch (composed agents) instead of the per-robot '
-                            'topics'),
+    'proximity_rate_hz': (10.0, 'Proximity scans per simulated second; 0: no sensor'),
+    'proximity_range_m': (3.0, 'Proximity sensor range (m): neighbours within it are seen'),
+    'proximity_std': (0.02, 'Proximity offset noise per axis (m)'),
+    'sensor_batch': (False, 'Publish imu, ranges, proximity and radio deliveries of every '
+                            'robot in one /swarm/sensor_batch per step and take force '
+                            'commands from /swarm/cmd_batch (composed agents) instead of '
+                            'the per-robot topics'),
     'truth_rate_hz': (2.0, 'Ground-truth publication rate (sim time)'),
     'marker_rate_hz': (1.0, 'RViz marker rate on /swarm/markers (sim time); 0: none'),
     'command_timeout_s': (0.5, 'Force commands older than this are dropped to zero'),
@@ -180,6 +187,18 @@ class PointMassBackend:
         pass
 
 
+def _check_proximity_parameters(p: dict) -> None:
+    """ValueError naming the proximity parameter that is out of range, and the fix."""
+    for name, ok, wanted, example in (
+            ('proximity_rate_hz', p['proximity_rate_hz'] >= 0, '>= 0 Hz (0: no sensor)', 10.0),
+            ('proximity_range_m', p['proximity_range_m'] > 0, 'above 0 m', 3.0),
+            ('proximity_std', p['proximity_std'] >= 0, '>= 0 m', 0.02)):
+        if not (math.isfinite(p[name]) and ok):
+            raise ValueError(f'parameter {name} must be a finite number {wanted}, got '
+                             f'{p[name]}: set it in config/sim.yaml or with --ros-args '
+                             f'-p {name}:={example}')
+
+
 def make_backend(name: str, fleet, types, obstacles, half_size, terrain, seed, gui,
                  physics_hz: float = 100.0):
     """The physics backend by name ('auto' prefers pybullet's swarm_sim.world)."""
@@ -204,6 +223,7 @@ class SimNode(Node):
         for name, (default, text) in PARAMETERS.items():
             self.declare_parameter(name, default, ParameterDescriptor(description=text))
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        _check_proximity_parameters(p)
         self.params = p
         self.fleet = load_fleet(p['fleet_file'])
         self.ids = [r.id for r in self.fleet]
@@ -224,6 +244,10 @@ class SimNode(Node):
             self._start_wall(p['radio_wall_speed_mps'], 0.0)
         self.imu = ImuModel(self.n, self.rng)
         self.gps = GpsModel(self.rng, std=p['gps_std'])
+        self.radii = np.array([types[r.type].coverage_radius for r in self.fleet])
+        self.proximity = (ProximityModel(self.rng, range_m=p['proximity_range_m'],
+                                         noise_std=p['proximity_std'])
+                          if p['proximity_rate_hz'] > 0 else None)
         self.alive = np.ones(self.n, dtype=bool)
         self.forces = np.zeros((self.n, 2))
         self.force_time = np.full(self.n, -math.inf)
@@ -235,7 +259,8 @@ class SimNode(Node):
         self.dt = 1.0 / p['physics_rate_hz']
         self.step_count = 0
         self.t = 0.0
-        self._due = {k: 0.0 for k in ('imu', 'gps', 'range', 'radio', 'truth', 'marker')}
+        self._due = {k: 0.0 for k in ('imu', 'gps', 'range', 'proximity', 'radio', 'truth',
+                                      'marker')}
         self._rx_batches: dict[int, list[tuple[float, Packet]]] = {}
         self._rx_grouped: list[tuple[float, Packet, list[int]]] = []
         self._record = None
@@ -263,10 +288,11 @@ class SimNode(Node):
                 lean_subscription(self, AgentState, f'/agent_{r.id}/state',
                                   lambda m: self._modes.__setitem__(m.id, m.mode), state)
         self.imu_pubs, self.gps_pubs, self.range_pubs, self.rx_pubs = {}, {}, {}, {}
+        self.proximity_pubs = {}
         # Per-robot topics without default QoS event handlers (agent_node.lean_publisher):
         # with them, 50 robots made a wait set of about 750 entities.
-        # With sensor_batch, imu, ranges and radio/rx of every robot travel in one
-        # /swarm/sensor_batch message per step instead (composed agents).
+        # With sensor_batch, imu, ranges, proximity and radio/rx of every robot travel in
+        # one /swarm/sensor_batch message per step instead (composed agents).
         self.batch_pub = (self.create_publisher(SensorBatch, '/swarm/sensor_batch', radio)
                           if p['sensor_batch'] else None)
         for r in self.fleet:
@@ -275,6 +301,9 @@ class SimNode(Node):
                 self.imu_pubs[r.id] = lean_publisher(self, Imu, f'{ns}/imu', imu)
                 self.range_pubs[r.id] = lean_publisher(self, RangeArray, f'{ns}/ranges',
                                                        sensor)
+                if self.proximity is not None:
+                    self.proximity_pubs[r.id] = lean_publisher(
+                        self, ProximityArray, f'{ns}/proximity', sensor)
                 self.rx_pubs[r.id] = lean_publisher(self, RadioPacketArray,
                                                     f'{ns}/radio/rx', radio)
             if r.is_beacon:
@@ -608,6 +637,16 @@ class SimNode(Node):
             else:
                 for msg in ranges:
                     self.range_pubs[msg.receiver].publish(msg)
+        if self.proximity is not None and self._due_now('proximity', 'proximity_rate_hz'):
+            # Every living robot gets its scan, an empty one too: nobody within range.
+            scan = self.proximity.measure(pos, self.radii, self.alive)
+            scans = [proximity_to_msg(stamp, self.ids[i], *scan.of(i), self.proximity.noise_std)
+                     for i in np.flatnonzero(self.alive)]
+            if batch is not None:
+                batch['proximity'] = scans
+            else:
+                for msg in scans:
+                    self.proximity_pubs[msg.receiver].publish(msg)
         if batch:
             self.batch_pub.publish(sensor_batch_to_msg(stamp, **batch))
         if self._due_now('truth', 'truth_rate_hz'):
