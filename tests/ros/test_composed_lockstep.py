@@ -112,13 +112,12 @@ def test_every_clock_advance_is_answered_by_every_agent(tmp_path):
 
 def test_a_composed_process_takes_its_agents_inputs_from_one_sensor_batch(tmp_path):
     """sensor_batch: the world's one message per step reaches each agent's brain."""
-    from swarm_agent.conversions import proximity_to_msg, sensor_batch_to_msg
+    from swarm_agent.conversions import sensor_batch_to_msg
     from swarm_agent.mesh_messages import NeighbourInfo
     from swarm_agent.packet import BROADCAST, Kind, Packet
     from swarm_agent.wire import encode_heartbeat
     from swarm_msgs.msg import (
         ForceBatch,
-        ProximityArray,
         RangeArray,
         RangeMeasurement,
         SensorBatch,
@@ -151,15 +150,14 @@ def test_a_composed_process_takes_its_agents_inputs_from_one_sensor_batch(tmp_pa
             Time(sec=3), imu_ids=[2], imu_accel=[[2.0, 0.0]], imu_noise_std=0.01,
             ranges=[RangeArray(receiver=1, ranges=[RangeMeasurement(
                 beacon_id=0, range=4.5, stddev=0.1)])],
-            proximity=[proximity_to_msg(Time(sec=3), 1, [[4.0, 0.0]], [0.6], 0.02),
-                       ProximityArray(receiver=2, x=[1.0], y=[], radius=[])],  # malformed
-            rx=[(3.0, heartbeat, [1])]))
+            prox_ids=[1, 7], prox_counts=[1, 0], prox_offsets=[[4.0, 0.0]], prox_radii=[0.6],
+            prox_stddev=0.02, rx=[(3.0, heartbeat, [1])]))
         assert spin_until(executor, lambda: 0 in agent1.brain.neighbours, 10.0)
         assert agent1.brain.neighbours[0].info == info          # radio delivery
         assert agent1.brain._ranges == [(0, 4.5, 0.1)]          # ranges
         offsets, radii = agent1.brain._proximity                # proximity
         assert offsets.tolist() == [[4.0, 0.0]] and radii.tolist() == [0.6]
-        assert agent2.brain._proximity is None                  # its scan was dropped
+        assert agent2.brain._proximity is None                  # no scan for it
         assert 0 not in agent2.brain.neighbours                 # only its receiver's
         batch.publish(sensor_batch_to_msg(Time(sec=4), imu_ids=[2], imu_accel=[[2.0, 0.0]]))
         assert spin_until(

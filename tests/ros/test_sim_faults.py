@@ -262,7 +262,7 @@ def test_a_composed_world_sends_proximity_in_its_sensor_batch(tmp_path):
     """sensor_batch: the scans travel in /swarm/sensor_batch, not on per-robot topics."""
     from rclpy.qos import QoSProfile
 
-    from swarm_agent.conversions import proximity_from_msg, sensor_batch_from_msg
+    from swarm_agent.conversions import sensor_batch_from_msg
     from swarm_mission import qos
     from swarm_msgs.msg import SensorBatch
 
@@ -271,12 +271,11 @@ def test_a_composed_world_sends_proximity_in_its_sensor_batch(tmp_path):
         batches = []
         probe.create_subscription(SensorBatch, '/swarm/sensor_batch', batches.append,
                                   QoSProfile(**qos.RADIO))
-        assert _until(executor, lambda: sum(len(b.proximity) > 0 for b in batches) >= 2)
+        assert _until(executor, lambda: sum(len(b.prox_ids) > 0 for b in batches) >= 2)
         topics = {name for name, _ in probe.get_topic_names_and_types()}
         assert not any(t.endswith('/proximity') for t in topics), topics
-        _, _, scans, _ = sensor_batch_from_msg(next(b for b in batches if b.proximity))
-        assert sorted(s.receiver for s in scans) == [0, 1]
-        by_id = {s.receiver: proximity_from_msg(s) for s in scans}
+        _, _, by_id, _ = sensor_batch_from_msg(next(b for b in batches if b.prox_ids))
+        assert sorted(by_id) == [0, 1]
         np.testing.assert_allclose(by_id[0][0], [[0.0, 2.5]], atol=0.1)
         np.testing.assert_allclose(by_id[1][0], [[0.0, -2.5]], atol=0.1)
 

@@ -81,12 +81,7 @@ def test_a_sensor_batch_carries_each_robots_part_of_a_step():
     from builtin_interfaces.msg import Time
     import numpy as np
 
-    from swarm_agent.conversions import (
-        proximity_from_msg,
-        proximity_to_msg,
-        sensor_batch_from_msg,
-        sensor_batch_to_msg,
-    )
+    from swarm_agent.conversions import sensor_batch_from_msg, sensor_batch_to_msg
     from swarm_msgs.msg import RangeArray, RangeMeasurement
 
     stamp = Time(sec=12, nanosec=500_000_000)
@@ -96,24 +91,31 @@ def test_a_sensor_batch_carries_each_robots_part_of_a_step():
     # Deliveries grouped by frame, in arrival order, as RadioMedium.deliver_grouped.
     (s0, f0), (s1, f1), (s2, f2) = frames
     grouped = [(s0, f0, [11, 4]), (s1, f1, [4]), (s2, f2, [11, 4, 9])]
-    scans = [proximity_to_msg(stamp, 4, [[1.5, -0.5]], [0.4], 0.02),
-             proximity_to_msg(stamp, 11, np.zeros((0, 2)), [], 0.02)]   # nobody near
+    # Robot 4 sees two neighbours, robot 11 nobody, robot 9 one.
     msg = sensor_batch_to_msg(stamp, imu_ids=[4, 9], imu_accel=np.array([[0.1, -0.2],
                                                                          [0.0, 0.3]]),
-                              imu_noise_std=0.01, ranges=ranges, proximity=scans, rx=grouped)
-    imu, got_ranges, got_scans, rx = sensor_batch_from_msg(msg)
+                              imu_noise_std=0.01, ranges=ranges, prox_ids=[4, 11, 9],
+                              prox_counts=[2, 0, 1],
+                              prox_offsets=[[1.5, -0.5], [0.0, 2.0], [-1.5, 0.5]],
+                              prox_radii=[0.4, 0.15, 0.3], prox_stddev=0.02, rx=grouped)
+    imu, got_ranges, scans, rx = sensor_batch_from_msg(msg)
     assert imu == [(4, 0.1, -0.2), (9, 0.0, 0.3)] and msg.imu_noise_std == 0.01
     assert got_ranges[0].receiver == 4 and got_ranges[0].ranges[0].range == 3.5
-    assert [scan.receiver for scan in got_scans] == [4, 11]
-    offsets, radii = proximity_from_msg(got_scans[0])
-    assert offsets.tolist() == [[1.5, -0.5]] and radii.tolist() == [0.4]
-    offsets, radii = proximity_from_msg(got_scans[1])
-    assert offsets.shape == (0, 2) and radii.shape == (0,)
+    assert sorted(scans) == [4, 9, 11] and msg.prox_stddev == 0.02
+    assert scans[4][0].tolist() == [[1.5, -0.5], [0.0, 2.0]]
+    assert scans[4][1].tolist() == [0.4, 0.15]
+    assert scans[9][0].tolist() == [[-1.5, 0.5]] and scans[9][1].tolist() == [0.3]
+    assert scans[11][0].shape == (0, 2) and scans[11][1].shape == (0,)
+    # Counts that disagree with the rows are refused, naming both.
+    msg.prox_counts = [2, 0, 2]
+    with pytest.raises(PacketError, match='summing to 4 but 3 x'):
+        sensor_batch_from_msg(msg)
+    msg.prox_counts = [2, 0, 1]
     assert rx == {4: frames, 9: frames[2:], 11: [frames[0], frames[2]]}
     # Each frame travels once, whatever the number of its receivers.
     assert len(msg.rx_frames) == 6 and len(msg.frames) == len(pack_frames(frames))
     empty = sensor_batch_to_msg(stamp)            # nothing due this step
-    assert sensor_batch_from_msg(empty) == ([], [], [], {})
+    assert sensor_batch_from_msg(empty) == ([], [], {}, {})
     # Arrays that disagree, or a receiver's bytes cut short, are refused, never misread.
     every = [(s, f, [4]) for s, f in frames]
     short = sensor_batch_to_msg(stamp, rx=every)

@@ -178,7 +178,7 @@ class AgentNode(Node):
         (composed_node: one timer of each drives every agent of the process). With
         ``shared_inputs`` it subscribes to none of imu, ranges, proximity, radio/rx, shape
         and goals: its owner hands them over (``on_imu_sample``, ``on_range_array``,
-        ``on_proximity_array``, ``on_radio_frames``, ``on_shape``, ``on_goals``;
+        ``on_proximity_scan``, ``on_radio_frames``, ``on_shape``, ``on_goals``;
         composed_node with the world's /swarm/sensor_batch). ``command_sink(agent id,
         stamp s, fx, fy)`` takes the force commands instead of the cmd_force topic
         (composed_node: one ForceBatch per step)."""
@@ -298,6 +298,10 @@ class AgentNode(Node):
             self.get_logger().error(f'dropped a malformed scan on proximity: {exc}',
                                     throttle_duration_sec=10.0)
             return
+        self.on_proximity_scan(offsets, radii)
+
+    def on_proximity_scan(self, offsets: np.ndarray, radii: np.ndarray) -> None:
+        """Neighbours' offsets (k, 2) and radii (k,) seen now (composed_node's batch)."""
         self.brain.on_proximity(self._now(), offsets, radii)
 
     def _on_radio(self, msg: RadioPacketArray) -> None:

@@ -210,9 +210,9 @@ class ComposedAgents(Node):
         for array in ranges:
             if array.receiver in agents:
                 agents[array.receiver].on_range_array(array)
-        for array in proximity:
-            if array.receiver in agents:
-                agents[array.receiver].on_proximity_array(array)
+        for agent_id, (offsets, radii) in proximity.items():
+            if agent_id in agents:
+                agents[agent_id].on_proximity_scan(offsets, radii)
         for agent_id, frames in rx.items():
             if agent_id in agents:
                 agents[agent_id].on_radio_frames(stamp, frames)

@@ -91,7 +91,8 @@ def proximity_from_msg(msg: ProximityArray) -> tuple[np.ndarray, np.ndarray]:
 
 def sensor_batch_to_msg(stamp: Time, *, imu_ids=(), imu_accel=None, imu_noise_std: float = 0.0,
                         ranges: Iterable[RangeArray] = (),
-                        proximity: Iterable[ProximityArray] = (),
+                        prox_ids=(), prox_counts=(), prox_offsets=None, prox_radii=None,
+                        prox_stddev: float = 0.0,
                         rx: Sequence[tuple[float, Packet, Sequence[int]]] = ()
                         ) -> SensorBatch:
     """One step's sensor data and radio deliveries of many robots -> swarm_msgs/SensorBatch.
@@ -110,7 +111,16 @@ def sensor_batch_to_msg(stamp: Time, *, imu_ids=(), imu_accel=None, imu_noise_st
         msg.imu_ay = array('d', accel[:, 1].tolist())
         msg.imu_noise_std = float(imu_noise_std)
     msg.ranges = list(ranges)
-    msg.proximity = list(proximity)
+    if len(prox_ids):
+        # Scans grouped by observer: robot prox_ids[k] saw the next prox_counts[k] rows
+        # of prox_offsets (M, 2) and prox_radii (M,).
+        offsets = np.asarray(prox_offsets, dtype=float).reshape(-1, 2)
+        msg.prox_ids = array('H', [int(i) for i in prox_ids])
+        msg.prox_counts = array('I', [int(c) for c in prox_counts])
+        msg.prox_x = array('d', offsets[:, 0].tolist())
+        msg.prox_y = array('d', offsets[:, 1].tolist())
+        msg.prox_radius = array('d', np.asarray(prox_radii, dtype=float).tolist())
+        msg.prox_stddev = float(prox_stddev)
     if rx:
         # Vectorised: one (receiver, frame index) pair per delivery, stably sorted by
         # receiver so that each receiver's frames stay in arrival order.
@@ -125,17 +135,28 @@ def sensor_batch_to_msg(stamp: Time, *, imu_ids=(), imu_accel=None, imu_noise_st
     return msg
 
 
-def sensor_batch_from_msg(msg: SensorBatch) -> tuple[list[tuple[int, float, float]],
-                                                     list[RangeArray],
-                                                     list[ProximityArray],
-                                                     dict[int, list[tuple[float, Packet]]]]:
-    """swarm_msgs/SensorBatch -> (imu samples (id, ax, ay), range arrays, proximity
-    arrays, rx frames by receiver). Raises PacketError when the imu or radio arrays
-    disagree or a frame is corrupt; each proximity array is checked by
-    ``proximity_from_msg`` when its agent takes it."""
+def sensor_batch_from_msg(msg: SensorBatch) -> tuple[
+        list[tuple[int, float, float]], list[RangeArray],
+        dict[int, tuple[np.ndarray, np.ndarray]], dict[int, list[tuple[float, Packet]]]]:
+    """swarm_msgs/SensorBatch -> (imu samples (id, ax, ay), range arrays, proximity scans
+    by observer (offsets (k, 2), radii (k,)), rx frames by receiver). Raises PacketError
+    when the imu, proximity or radio arrays disagree or a frame is corrupt."""
     if not len(msg.imu_ax) == len(msg.imu_ay) == len(msg.imu_ids):
         raise PacketError(f'{len(msg.imu_ids)} imu ids but {len(msg.imu_ax)} x and '
                           f'{len(msg.imu_ay)} y accelerations')
+    rows = len(msg.prox_x)
+    if len(msg.prox_ids) != len(msg.prox_counts) or sum(msg.prox_counts) != rows or \
+            not rows == len(msg.prox_y) == len(msg.prox_radius):
+        raise PacketError(f'{len(msg.prox_ids)} proximity observers with '
+                          f'{len(msg.prox_counts)} counts summing to {sum(msg.prox_counts)} '
+                          f'but {rows} x, {len(msg.prox_y)} y and {len(msg.prox_radius)} '
+                          'radius values')
+    offsets = np.column_stack([np.asarray(msg.prox_x, dtype=float),
+                               np.asarray(msg.prox_y, dtype=float)])
+    radii = np.asarray(msg.prox_radius, dtype=float)
+    ends = np.cumsum(np.asarray(msg.prox_counts, dtype=np.int64))
+    proximity = {int(i): (offsets[end - count:end], radii[end - count:end])
+                 for i, count, end in zip(msg.prox_ids, msg.prox_counts, ends.tolist())}
     imu = list(zip((int(i) for i in msg.imu_ids), msg.imu_ax, msg.imu_ay))
     if len(msg.rx_ids) != len(msg.rx_counts) or sum(msg.rx_counts) != len(msg.rx_frames):
         raise PacketError(f'{len(msg.rx_ids)} receivers with {len(msg.rx_counts)} counts '
@@ -149,7 +170,7 @@ def sensor_batch_from_msg(msg: SensorBatch) -> tuple[list[tuple[int, float, floa
     for receiver, count in zip(msg.rx_ids, msg.rx_counts):
         rx[int(receiver)] = [distinct[k] for k in refs[offset:offset + count]]
         offset += count
-    return imu, list(msg.ranges), list(msg.proximity), rx
+    return imu, list(msg.ranges), proximity, rx
 
 
 def snapshot_to_state(snap: Snapshot, stamp: Time | None = None,

@@ -108,6 +108,10 @@ def _closest_feasible(v: np.ndarray, normals: np.ndarray, bounds: np.ndarray) ->
     them least is returned.
     """
     excess = normals @ v - bounds
+    if (excess <= 0.0).all():
+        return v                                  # already safe (the common case)
+    if len(bounds) == 1:
+        return v - excess[0] * normals[0]
     candidates = [v[None, :], v - np.maximum(excess, 0.0)[:, None] * normals]
     i, j = np.triu_indices(len(bounds), 1)
     if len(i):

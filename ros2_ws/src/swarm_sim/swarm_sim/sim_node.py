@@ -640,13 +640,16 @@ class SimNode(Node):
         if self.proximity is not None and self._due_now('proximity', 'proximity_rate_hz'):
             # Every living robot gets its scan, an empty one too: nobody within range.
             scan = self.proximity.measure(pos, self.radii, self.alive)
-            scans = [proximity_to_msg(stamp, self.ids[i], *scan.of(i), self.proximity.noise_std)
-                     for i in np.flatnonzero(self.alive)]
+            living = np.flatnonzero(self.alive)
             if batch is not None:
-                batch['proximity'] = scans
+                batch.update(prox_ids=[self.ids[i] for i in living],
+                             prox_counts=np.bincount(scan.observers, minlength=self.n)[living],
+                             prox_offsets=scan.offsets, prox_radii=scan.radii,
+                             prox_stddev=self.proximity.noise_std)
             else:
-                for msg in scans:
-                    self.proximity_pubs[msg.receiver].publish(msg)
+                for i in living:
+                    self.proximity_pubs[self.ids[i]].publish(proximity_to_msg(
+                        stamp, self.ids[i], *scan.of(i), self.proximity.noise_std))
         if batch:
             self.batch_pub.publish(sensor_batch_to_msg(stamp, **batch))
         if self._due_now('truth', 'truth_rate_hz'):
