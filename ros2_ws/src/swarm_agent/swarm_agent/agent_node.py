@@ -298,11 +298,11 @@ class AgentNode(Node):
             self.get_logger().error(f'dropped a malformed scan on proximity: {exc}',
                                     throttle_duration_sec=10.0)
             return
-        self.on_proximity_scan(offsets, radii)
+        self.on_proximity_scan(0.0, offsets, radii)
 
-    def on_proximity_scan(self, offsets: np.ndarray, radii: np.ndarray) -> None:
-        """Neighbours' offsets (k, 2) and radii (k,) seen now (composed_node's batch)."""
-        self.brain.on_proximity(self._now(), offsets, radii)
+    def on_proximity_scan(self, stamp: float, offsets: np.ndarray, radii: np.ndarray) -> None:
+        """Neighbours' offsets (k, 2) and radii (k,) seen at ``stamp`` (s; 0: now)."""
+        self.brain.on_proximity(stamp if stamp > 0.0 else self._now(), offsets, radii)
 
     def _on_radio(self, msg: RadioPacketArray) -> None:
         self.on_radio_frames(stamp_seconds(msg.header.stamp),

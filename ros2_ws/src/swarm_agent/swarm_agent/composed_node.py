@@ -212,7 +212,7 @@ class ComposedAgents(Node):
                 agents[array.receiver].on_range_array(array)
         for agent_id, (offsets, radii) in proximity.items():
             if agent_id in agents:
-                agents[agent_id].on_proximity_scan(offsets, radii)
+                agents[agent_id].on_proximity_scan(stamp, offsets, radii)
         for agent_id, frames in rx.items():
             if agent_id in agents:
                 agents[agent_id].on_radio_frames(stamp, frames)
