@@ -39,3 +39,21 @@ def test_agents_that_used_other_rows_in_the_same_round_disagree_per_type():
     no_rounds = {k: v for k, v in rec.items() if k != 'rounds'}   # the headless record
     assert np.isnan(belief_metrics(no_rounds, types=np.array([1, 1, 1, 2, 1]),
                                    is_beacon=np.zeros(5, dtype=bool))['round_agreement'])
+
+
+def test_optimal_paths_give_the_displacement_bound_and_the_least_settling_time():
+    from shapely.geometry import box
+
+    from swarm_mission.shapes import Shape
+    from swarm_sim.metrics import run_metrics
+
+    # Two type-1 robots at x = 0 and x = 10 end at x = 7 and x = 4. The optimal
+    # assignment sends them to 4 and 7 (4 + 3 = 7 m, not 7 + 6 = 13 m); its longest
+    # path, 4 m, is what no method's settling time can beat at 0.5 m/s.
+    start = np.array([[0.0, 0.0], [10.0, 0.0]])
+    end = np.array([[7.0, 0.0], [4.0, 0.0]])
+    positions = np.stack([start, end])
+    m = run_metrics(np.array([0.0, 20.0]), positions, np.zeros_like(positions), [1, 1],
+                    Shape('strip', box(-1.0, -1.0, 11.0, 1.0)), {1: 0.15})
+    assert m['displacement_lower_bound'] == pytest.approx(7.0)
+    assert m['longest_assigned_path'] == pytest.approx(4.0)

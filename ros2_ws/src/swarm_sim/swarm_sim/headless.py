@@ -50,7 +50,8 @@ class Scenario:
     duration_s: float = 600.0
     control_dt: float = 0.02              # inner loop period (50 Hz)
     medium_update_s: float = 0.1          # how often links are recomputed
-    imu_period_s: float = 0.02            # IMU sample period (mean acceleration over it)
+    imu_period_s: float = 0.1             # IMU sample period (mean acceleration over it):
+    #                                       sim_node's imu_rate_hz (10 Hz)
     range_period_s: float = 1.0           # TOA ranging rate
     gps_period_s: float = 1.0             # beacon GPS rate
     proximity_period_s: float = 0.1       # proximity sensor rate (10 Hz); 0: no sensor

@@ -10,6 +10,8 @@ Shared by the headless evaluator and the ROS launcher, so both report the same k
 - ``displacement_lower_bound``: the optimal assignment's summed shortest paths (in each
   type's free space) from the initial positions to the final positions, a bound no
   method can beat for the same final formation.
+- ``longest_assigned_path``: the longest single path of that optimal assignment;
+  divided by the 0.5 m/s speed limit it is the least time any method needs to settle.
 - ``min_separation_ratio``: the smallest distance between two robots divided by the sum
   of their coverage radii over the run (below 1 means coverage circles overlapped).
 """
@@ -78,7 +80,14 @@ def min_separation_ratio(positions: np.ndarray, radii: np.ndarray) -> float:
 def displacement_lower_bound(initial: np.ndarray, final: np.ndarray, types: np.ndarray,
                              shape: Shape, radii: Mapping[int, float]) -> float:
     """Optimal assignment of initial to final positions per type, by free-space paths."""
-    total = 0.0
+    return float(optimal_assigned_paths(initial, final, types, shape, radii).sum())
+
+
+def optimal_assigned_paths(initial: np.ndarray, final: np.ndarray, types: np.ndarray,
+                           shape: Shape, radii: Mapping[int, float]) -> np.ndarray:
+    """The path length of every robot in the optimal assignment of initial to final
+    positions per type (free-space shortest paths; sum: ``displacement_lower_bound``)."""
+    paths = []
     for t in np.unique(types):
         idx = np.flatnonzero(types == t)
         graph = VisibilityGraph(grow_obstacles(list(shape.obstacles), radii[int(t)]))
@@ -88,8 +97,8 @@ def displacement_lower_bound(initial: np.ndarray, final: np.ndarray, types: np.n
         straight = np.linalg.norm(initial[idx][:, None, :] - final[idx][None, :, :], axis=2)
         cost = np.where(np.isfinite(cost), cost, straight)
         rows, cols = linear_sum_assignment(cost)
-        total += float(cost[rows, cols].sum())
-    return total
+        paths.append(cost[rows, cols])
+    return np.concatenate(paths) if paths else np.zeros(0)
 
 
 def mesh_metrics(points: np.ndarray, shape: Shape) -> dict[str, float]:
@@ -114,11 +123,13 @@ def run_metrics(times: np.ndarray, positions: np.ndarray, velocities: np.ndarray
     radius = np.array([radii[int(t)] for t in types])
     alive_now = np.ones(len(types), bool) if alive is None else alive[-1]
     final = positions[-1][alive_now]
+    optimal = optimal_assigned_paths(positions[0][alive_now], final, types[alive_now], shape,
+                                     radii)
     metrics: dict[str, float | None] = {
         'total_displacement': float(path_lengths(positions).sum()),
         'settling_time': settling_time(times, positions, velocities, shape, alive),
-        'displacement_lower_bound': displacement_lower_bound(
-            positions[0][alive_now], final, types[alive_now], shape, radii),
+        'displacement_lower_bound': float(optimal.sum()),
+        'longest_assigned_path': float(optimal.max()) if len(optimal) else float('nan'),
         'min_separation_ratio': min_separation_ratio(positions[:, alive_now],
                                                      radius[alive_now]),
         'fraction_inside': float(inside_mask(shape, final).mean()) if len(final) else 0.0,
