@@ -44,6 +44,9 @@ from swarm_agent.wire import Advert, INFINITE_HOPS, WireError
 
 LOG = logging.getLogger(__name__)
 _KINDS = {int(k): k for k in Kind}
+# Compared by identity in on_packet (an Enum attribute lookup per frame adds up).
+_HEARTBEAT, _FULL, _INCREMENTAL = Kind.HEARTBEAT, Kind.DSDV_FULL, Kind.DSDV_INCREMENTAL
+_DATA, _FLOOD = Kind.DATA, Kind.FLOOD
 SEQUENCE_STEP = 2  # own sequence numbers grow by this at every full dump (they stay even)
 SEQUENCE_MASK = 0xFFFFFFFF  # sequence numbers are 32-bit on the wire and wrap around
 _HALF = 1 << 31
@@ -251,18 +254,18 @@ class DsdvRouter:
             self._count('rejected_unknown_kind')
             return out
         try:
-            if kind == Kind.HEARTBEAT:
+            if kind is _HEARTBEAT:
                 seq, info = wire.decode_heartbeat(packet.payload)
                 self._heard(t, packet.source, seq)
                 out.delivered.append(Delivered(packet.source, Kind.HEARTBEAT, info))
-            elif kind in (Kind.DSDV_FULL, Kind.DSDV_INCREMENTAL):
+            elif kind is _FULL or kind is _INCREMENTAL:
                 seq, adverts = wire.decode_adverts(packet.payload)
                 self._heard(t, packet.source, None)
                 self._learn_neighbourhood(packet.source, adverts)
                 self._merge(packet.source, adverts)
-            elif kind == Kind.DATA:
+            elif kind is _DATA:
                 self._on_data(t, packet, out)
-            elif kind == Kind.FLOOD:
+            elif kind is _FLOOD:
                 self._on_flood(t, packet, out)
             else:
                 self._count('rejected_unknown_kind')
@@ -312,7 +315,11 @@ class DsdvRouter:
         covered = self.two_hop.get(previous_hop)
         if covered is None:
             return True  # the sender's neighbourhood is unknown: relay to be safe
-        if any(n != previous_hop and n not in covered for n in self.heard):
+        # A neighbour of ours that the sender does not cover (set difference in C: the
+        # generator it replaces was 3 % of a composed swarm's process).
+        uncovered = self.heard.keys() - covered
+        uncovered.discard(previous_hop)
+        if uncovered:
             return True
         fraction = self.config.flood_relay_fraction
         if fraction <= 0.0:
