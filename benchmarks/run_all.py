@@ -73,7 +73,9 @@ TARGET_SIZE = 1000        # the issue's per-round targets are for 1000 agents
 ROUND_TARGET_S = 1.0      # assignment and cost rows under 1 s per round
 EVAL_TARGET_PER_MIN = 100.0
 WORLD_TARGET = (50, 20.0)  # issue 6: the bare pybullet world, 50 robots, 20x real time
-PROCESS_MB = 160          # resident memory of one agent_node process (measured: 20 -> 2.9 GB)
+# Memory of one agent_node process forked by the launcher (swarm_agent.prefork), its
+# share of the pages it holds with the others (measured: 50 agents, 2.3 GB PSS in all).
+PROCESS_MB = 60
 # mode, agents, real-time factor (issue 9; 50 composed at 5: issue 7)
 ROS_TARGETS = (('per-process', 50, 1.0), ('composed', 50, 5.0), ('composed', 100, 2.0))
 
@@ -532,6 +534,7 @@ def bench_ros(sizes: Sequence[int], duration_s: float, timeout_s: float,
                             'startup_wall_seconds': m.get('startup_wall_seconds'),
                             'cpu_cores_used': m.get('cpu_cores_used'),
                             'peak_rss_mb': (m.get('peak_rss_bytes') or 0) / 2 ** 20,
+                            'peak_pss_mb': (m.get('peak_pss_bytes') or 0) / 2 ** 20,
                             'wall_seconds': m.get('wall_seconds'),
                             'outcome': m.get('outcome'),
                             'assignment_agreement': m.get('assignment_agreement'),
@@ -539,7 +542,7 @@ def bench_ros(sizes: Sequence[int], duration_s: float, timeout_s: float,
             rows.append(row)
             log(f'    -> rtf {fmt_num(row.get("real_time_factor"))}, cores '
                 f'{fmt_num(row.get("cpu_cores_used"))}, peak '
-                f'{fmt_num(row.get("peak_rss_mb"), 0)} MB'
+                f'{fmt_num(row.get("peak_pss_mb"), 0)} MB (PSS)'
                 + (f', error: {row["error"]}' if 'error' in row else ''))
     return rows
 
@@ -783,7 +786,7 @@ def write_markdown(path: pathlib.Path, results: dict) -> None:
     lines += ['', '## ROS 2 swarm (scripts/launch_swarm.py)', '']
     if s.get('ros'):
         lines += ['| Agents | Mode | Real-time factor once started | Start-up (wall) | '
-                  'Real-time factor, whole run | CPU cores | Peak memory | Outcome |',
+                  'Real-time factor, whole run | CPU cores | Peak memory (PSS) | Outcome |',
                   '|---|---|---|---|---|---|---|---|']
         for r in s['ros']:
             startup = r.get('startup_wall_seconds')
@@ -792,14 +795,16 @@ def write_markdown(path: pathlib.Path, results: dict) -> None:
                          f'{fmt_s(startup) if startup is not None else "n/a"} | '
                          f'{fmt_num(r.get("real_time_factor"))}'
                          f' | {fmt_num(r.get("cpu_cores_used"))} | '
-                         f'{fmt_num(r.get("peak_rss_mb"), 0)} MB | '
+                         f'{fmt_num(r.get("peak_pss_mb") or r.get("peak_rss_mb"), 0)} MB | '
                          f'{r.get("outcome") or r.get("error", "")} |')
         lines.append('')
         lines.append(f'Each run: {c["ros_duration"]:g} simulated seconds of the thesis '
                      'scenario (15 % beacons, circle_314, bubble). Start-up: wall seconds '
                      'until the launcher had heard every agent (processes, DDS discovery, '
                      'first commands; the world waits for them). Real-time factor once '
-                     'started: simulated over wall seconds from then to the end.')
+                     'started: simulated over wall seconds from then to the end. Peak '
+                     'memory: proportional set size of every process of the run (pages '
+                     'shared by k processes counted 1/k in each), sampled every 10 s.')
     else:
         lines += ['Not run (slow). Run it with '
                   '`scripts/env.sh python benchmarks/run_all.py --ros --ros-sizes 20,50,100 '

@@ -232,6 +232,17 @@ def test_a_parked_robot_yields_to_a_neighbour_inside_the_buffer():
     assert not avoid_collisions(np.zeros(2), edge, [0.15], 0.15, params).any()
 
 
+def test_a_parked_robot_with_a_yield_margin_steps_aside_before_contact():
+    """yield_margin (hardware: goals 0.34 m apart): a robot squeezing past a parked one
+    at the buffer's edge moves it aside; without the margin it would wedge."""
+    params = SetpointParams(avoid_buffer=0.0, yield_margin=0.03)
+    at_edge = [[0.0, 0.16 + 0.11 + 0.01]]       # 1 cm beyond contact, inside the margin
+    moving = avoid_collisions(np.zeros(2), at_edge, [0.11], 0.16, params)
+    parked = avoid_collisions(np.zeros(2), at_edge, [0.11], 0.16, params, parked=True)
+    assert not moving.any()
+    np.testing.assert_allclose(parked, [0.0, -0.5 * params.avoid_rate * 0.02], atol=1e-12)
+
+
 def test_filter_is_the_closest_safe_velocity():
     """The exact two-variable QP: never worse than SLSQP on random cases."""
     from scipy.optimize import minimize

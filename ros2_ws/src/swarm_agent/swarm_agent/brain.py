@@ -305,7 +305,8 @@ class AgentBrain:
             self._avoid_due = False
             offsets, radii = self._neighbour_offsets(t)
             self._command = avoid_collisions(self._setpoint, offsets, radii,
-                                             self.robot.coverage_radius, self.config.setpoint)
+                                             self.robot.coverage_radius, self.config.setpoint,
+                                             parked=self._parked)
         if self._yielding and not self._command.any():
             # The neighbour has gone: back to the goal, and park there again (the
             # resume hysteresis is for localization noise, not for a real push).

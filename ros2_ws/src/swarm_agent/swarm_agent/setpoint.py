@@ -34,6 +34,8 @@ class SetpointParams:
     avoid_rate: float = 1.0      # 1/s: a pair closes its gap at most this fast per metre
     avoid_buffer: float = 0.3    # m kept free beyond the summed coverage radii
     swerve: float = 0.5          # share of the speed towards a close neighbour turned right
+    yield_margin: float = 0.0    # m a parked robot keeps beyond avoid_buffer: it steps
+    #                              aside for a robot that squeezes past it
     arrive_radius: float = 0.02  # m: closer than this, command zero
 
     def __post_init__(self) -> None:
@@ -41,9 +43,11 @@ class SetpointParams:
             if not getattr(self, name) > 0.0:
                 raise ValueError(f'setpoint parameter {name} must be positive, got '
                                  f'{getattr(self, name)}')
-        if not self.avoid_buffer >= 0.0 or not 0.0 <= self.swerve <= 1.0:
-            raise ValueError(f'avoid_buffer must be >= 0 m and swerve in [0, 1], got '
-                             f'{self.avoid_buffer} and {self.swerve}')
+        if not (self.avoid_buffer >= 0.0 and self.yield_margin >= 0.0
+                and 0.0 <= self.swerve <= 1.0):
+            raise ValueError(f'avoid_buffer and yield_margin must be >= 0 m and swerve in '
+                             f'[0, 1], got {self.avoid_buffer}, {self.yield_margin} and '
+                             f'{self.swerve}')
 
 
 def _saturate(v: np.ndarray, v_max: float) -> np.ndarray:
@@ -71,17 +75,19 @@ def velocity_setpoint(position, goal, params: SetpointParams, *,
 
 
 def avoid_collisions(velocity, offsets, radii, own_radius: float,
-                     params: SetpointParams) -> np.ndarray:
+                     params: SetpointParams, *, parked: bool = False) -> np.ndarray:
     """``velocity`` (m/s) made safe with respect to neighbours at ``offsets`` (k, 2:
     neighbour centre minus own centre, m) of coverage ``radii`` (k,); see the module
-    docstring. Returns the closest velocity to the swerved one that satisfies every
-    neighbour's constraint, saturated at ``v_max``."""
+    docstring. A ``parked`` robot keeps ``yield_margin`` more. Returns the closest
+    velocity to the swerved one that satisfies every neighbour's constraint, saturated
+    at ``v_max``."""
     v = np.asarray(velocity, dtype=float).copy()
     offsets = np.asarray(offsets, dtype=float).reshape(-1, 2)
     if not len(offsets):
         return v
     d = np.hypot(offsets[:, 0], offsets[:, 1])
-    gap = d - (own_radius + np.asarray(radii, dtype=float) + params.avoid_buffer)
+    buffer = params.avoid_buffer + (params.yield_margin if parked else 0.0)
+    gap = d - (own_radius + np.asarray(radii, dtype=float) + buffer)
     bound = 0.5 * params.avoid_rate * gap
     # Only neighbours whose bound can bind at v_max matter (and none on top of us:
     # no direction to keep).

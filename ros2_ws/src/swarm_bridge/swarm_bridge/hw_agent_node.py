@@ -41,7 +41,9 @@ PARAMETERS = {
     'setpoint_gain': (0.4, 'Setpoint speed per metre of remaining path, 1/s (3.2.4)'),
     'setpoint_v_max': (0.035, 'Setpoint speed limit, m/s (the bridge max_speed)'),
     'avoid_rate': (1.0, 'A pair closes its gap at most this fast per metre of gap, 1/s'),
-    'avoid_buffer': (0.02, 'Gap kept free beyond the summed coverage radii, m'),
+    'avoid_buffer': (0.0, 'Gap kept free beyond the summed coverage radii, m'),
+    'yield_margin': (0.03, 'A parked robot steps aside for one closer than this beyond '
+                           'the buffer, m (goals are about 0.34 m apart)'),
     'arrive_radius': (0.005, 'Closer than this to the goal the setpoint is zero, m'),
     'velocity_window': (0.5, 'Camera displacement over this many seconds is the velocity'),
 }
@@ -63,7 +65,8 @@ class HwAgentNode(AgentNode):
         config.resume_radius = p['resume_radius']
         config.setpoint = SetpointParams(
             gain=p['setpoint_gain'], v_max=p['setpoint_v_max'], avoid_rate=p['avoid_rate'],
-            avoid_buffer=p['avoid_buffer'], arrive_radius=p['arrive_radius'])
+            avoid_buffer=p['avoid_buffer'], yield_margin=p['yield_margin'],
+            arrive_radius=p['arrive_radius'])
         self._window = p['velocity_window']
         self._poses: deque[tuple[float, float, float]] = deque()
         self.get_logger().info(f'arena distances: park {p["hold_radius"]} m, resume '
