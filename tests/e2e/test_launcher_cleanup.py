@@ -18,10 +18,17 @@ SHAPE = ROOT / 'tests' / 'data' / 'square_8m.json'
 pytestmark = [pytest.mark.e2e]
 
 
-def _children(pid: int) -> set[int]:
-    out = subprocess.run(['ps', '--ppid', str(pid), '-o', 'pid='], capture_output=True,
-                         text=True).stdout
-    return {int(p) for p in out.split()}
+def _descendants(pid: int) -> set[int]:
+    """Every process below ``pid``: the per-process agents are forked by the launcher's
+    fork server (swarm_agent.prefork), so they are its grandchildren."""
+    found: set[int] = set()
+    frontier = [pid]
+    while frontier:
+        out = subprocess.run(['ps', '--ppid', ','.join(map(str, frontier)), '-o', 'pid='],
+                             capture_output=True, text=True).stdout
+        frontier = [int(p) for p in out.split() if int(p) not in found]
+        found.update(frontier)
+    return found
 
 
 def _alive(pids: set[int]) -> set[int]:
@@ -36,19 +43,19 @@ def _alive(pids: set[int]) -> set[int]:
 
 
 def _start(processes, out: pathlib.Path) -> tuple[subprocess.Popen, set[int]]:
-    """A per-process 4-agent run; returns once its 7 nodes (sim, mission, 4 agents,
-    their interpreters) are all started."""
+    """A per-process 4-agent run; returns once its processes (sim, mission, the fork
+    server and the 4 agents it forks) are all started."""
     proc = processes.python(str(LAUNCH), '--agents', '4', '--beacons', '3',
                             '--shape', str(SHAPE), '--half-size', '15', '--duration', '600',
                             '--out', str(out), stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 60.0
     kids: set[int] = set()
-    while time.monotonic() < deadline and len(kids) < 6:
+    while time.monotonic() < deadline and len(kids) < 7:
         time.sleep(0.5)
         assert proc.poll() is None, 'the launcher stopped early'
-        kids = _children(proc.pid)
-    assert len(kids) >= 6, f'only {len(kids)} nodes started'
+        kids = _descendants(proc.pid)
+    assert len(kids) >= 7, f'only {len(kids)} processes started'
     return proc, kids
 
 

@@ -9,9 +9,10 @@ world's clock moved) and 7.7 GB of resident memory.
 So the launcher starts them from multiprocessing's fork server, which imports the node
 module once; each agent is a fork of it. Each is still its own process with its own
 rclpy context and DDS participant, its own session (a Ctrl-C reaches it once, from the
-launcher), log file and exit code, and it dies with the fork server, which dies with the
-launcher. Forking is safe here because the server only imports: rclpy starts no thread
-and opens no DDS participant before ``rclpy.init``, which each child calls itself.
+launcher), log file and exit code; it dies with the launcher however the launcher dies
+(``die_with``), and the fork server ends once the launcher and its last child have.
+Forking is safe here because the server only imports: rclpy starts no thread and opens
+no DDS participant before ``rclpy.init``, which each child calls itself.
 
 ``ForkedProcess`` gives the launcher the ``subprocess.Popen`` calls it makes (``pid``,
 ``poll``, ``returncode``, ``wait``), so forked and exec'd children are handled alike.
@@ -24,9 +25,11 @@ import ctypes
 import importlib
 import multiprocessing
 import os
+import select
 import signal
 import subprocess
 import sys
+import threading
 
 PR_SET_PDEATHSIG = 1   # linux/prctl.h
 
@@ -47,12 +50,31 @@ def die_with_parent() -> None:
         libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
 
 
+def die_with(pid: int) -> None:
+    """SIGKILL this process when process ``pid`` exits, whoever its parent is (Linux
+    pidfd: a daemon thread blocks on it; elsewhere a no-op)."""
+    try:
+        fd = os.pidfd_open(pid)
+    except (AttributeError, OSError):
+        return
+
+    def watch() -> None:
+        select.select([fd], [], [])
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    threading.Thread(target=watch, name=f'die-with-{pid}', daemon=True).start()
+
+
 def run_node(module: str, argv: Sequence[str], log_path: str, env: Mapping[str, str],
-             cwd: str) -> None:
-    """In the forked child: a session of its own, death with the fork server, stdout and
-    stderr to ``log_path``, the launcher's environment, then ``module.main(argv)``."""
+             cwd: str, launcher_pid: int) -> None:
+    """In the forked child: a session of its own, stdout and stderr to ``log_path``, the
+    launcher's environment, then ``module.main(argv)``. It dies with its parent, the fork
+    server, and with the launcher (``launcher_pid``): multiprocessing keeps the fork
+    server alive as long as any of its children is, so dying with the parent alone would
+    leave both running after a SIGKILL of the launcher."""
     os.setsid()
     die_with_parent()
+    die_with(launcher_pid)
     fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
     os.dup2(fd, 1)
     os.dup2(fd, 2)
@@ -100,6 +122,7 @@ class ForkServer:
               env: Mapping[str, str], cwd: str) -> ForkedProcess:
         """Fork a child running ``module.main`` with ``argv``; see ``run_node``."""
         process = self._context.Process(target=run_node, name=name, daemon=False,
-                                        args=(module, list(argv), log_path, dict(env), cwd))
+                                        args=(module, list(argv), log_path, dict(env), cwd,
+                                              os.getpid()))
         process.start()
         return ForkedProcess(process)
