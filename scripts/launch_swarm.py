@@ -732,6 +732,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         wall = time.monotonic() - wall0
         cpu = children.cpu_seconds()
+        peak_pss = max(peak_pss, children.pss_bytes())   # and once at the end of the run
         # Who listens to ground truth? Only the monitor may (agents never see truth).
         try:
             truth_readers = sorted({f'{i.node_namespace.rstrip("/")}/{i.node_name}'
