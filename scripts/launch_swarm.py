@@ -44,6 +44,7 @@ the others' addresses there.
 from __future__ import annotations
 
 import argparse
+import faulthandler
 import os
 import pathlib
 import resource
@@ -753,20 +754,10 @@ def main(argv: list[str] | None = None) -> int:
         goal_versions = monitor.goal_version
         spin_thread.join(timeout=5.0)
 
+
         def close_ros() -> None:
             monitor.destroy_node()
             rclpy.try_shutdown()
-
-        # The ROS teardown has blocked forever with every child already stopped: rclpy's
-        # shutdown in rcl_logging_fini (a 50-agent run), and destroying a publisher of
-        # the monitor node (a 50-agent run, one process per agent; py-spy: idle in
-        # Publisher.destroy). Give it a few seconds, then write the report anyway.
-        closer = threading.Thread(target=close_ros, daemon=True)
-        closer.start()
-        closer.join(timeout=10.0)
-        if closer.is_alive():
-            print('\nlaunch_swarm: the ROS teardown hangs; writing the report anyway',
-                  file=sys.stderr, flush=True)
     print()
     from swarm_sim.report import run_report, write_metrics
 
@@ -815,7 +806,26 @@ def main(argv: list[str] | None = None) -> int:
         print('launch_swarm: --set-sim not applied: ' + '; '.join(
             f'{e["name"]}={e["value"]:g} at {e["time"]:g} s ({e["reason"]})' for e in failed),
             file=sys.stderr)
+    close_ros_or_exit(close_ros)
     return 1 if crashed or (failed and outcome != 'interrupted') else 0
+
+
+def close_ros_or_exit(close, seconds: float = 10.0) -> None:
+    """Run the launcher's ROS teardown after the report is written; if it has not
+    returned after ``seconds``, end the process (exit code 1).
+
+    The teardown has blocked forever with every child already stopped: rclpy's shutdown
+    in rcl_logging_fini (a 50-agent run), and destroying a publisher of the monitor node
+    (50 and 100 agents, one process per agent; py-spy: in Publisher.destroy). That call
+    holds the GIL, so no Python thread, timer or signal handler runs again (a thread
+    given 10 s to finish it left the launcher hanging for good); faulthandler's watchdog
+    is a C thread.
+    """
+    faulthandler.dump_traceback_later(seconds, exit=True)
+    try:
+        close()
+    finally:
+        faulthandler.cancel_dump_traceback_later()
 
 
 if __name__ == '__main__':

@@ -26,7 +26,9 @@ process in the executor, under 10 % in the agents' callbacks):
   world sends one ``/swarm/sensor_batch`` (swarm_msgs/SensorBatch) per step, which the
   container hands to its agents, and the agents' commands of a control step leave in one
   ``/swarm/cmd_batch`` (swarm_msgs/ForceBatch); shape and goals come through the
-  container too. The agents then subscribe to nothing but beacon GPS.
+  container too. The agents then subscribe to nothing but beacon GPS, and an agent
+  with nothing to wait for is not added to the executor at all (its publishers work
+  without it; 9 nodes per wait instead of 51 for the thesis scenario).
 - The agents' radio frames leave in one batch per ``radio_tx_hz`` period, flushed in the
   control callback right after the step that produced them.
 
@@ -72,6 +74,13 @@ SHARED = {
                             'shape and goals through the container, instead of per-robot '
                             'topics'),
 }
+
+
+def _has_callbacks(node: Node) -> bool:
+    """Whether the executor has anything of ``node`` to wait for."""
+    return any(next(iter(entities), None) is not None for entities in (
+        node.subscriptions, node.timers, node.services, node.clients, node.guards,
+        node.waitables))
 
 
 class ComposedAgents(Node):
@@ -144,7 +153,8 @@ class ComposedAgents(Node):
             if self._time_source is not None:
                 self._time_source.attach_clock(node.get_clock())
             self.agents[agent_id] = node
-            executor.add_node(node)
+            if _has_callbacks(node):
+                executor.add_node(node)
         self._timer_clock = timer_clock
         self.create_timer(1.0 / p['control_rate_hz'], self._on_control, clock=timer_clock)
         for rate, method in (('state_rate_hz', 'publish_state'),

@@ -93,10 +93,19 @@ def encode_routed(origin: int, second: int, chunk: bytes) -> bytes:
 
 
 def decode_routed(data: bytes) -> tuple[int, int, bytes]:
+    origin, second = decode_routed_header(data)
+    return origin, second, bytes(data[_ROUTED.size:])
+
+
+def decode_routed_header(data: bytes) -> tuple[int, int]:
+    """(origin, second) of a routed frame without copying its chunk: most floods a
+    robot hears are copies it has already seen."""
     if len(data) < _ROUTED.size + 1:
         raise WireError(f'routed frame truncated to {len(data)} bytes')
-    origin, second = _ROUTED.unpack_from(data)
-    return origin, second, bytes(data[_ROUTED.size:])
+    return _ROUTED.unpack_from(data)
+
+
+ROUTED_HEADER_SIZE = _ROUTED.size
 
 
 def split_message(message: bytes, fragment_id: int) -> list[bytes]:
