@@ -140,6 +140,9 @@ def test_a_composed_process_takes_its_agents_inputs_from_one_sensor_batch(tmp_pa
         topics = {name for name, _ in probe.get_topic_names_and_types()}
         assert not any(t.endswith(('/imu', '/ranges', '/proximity', '/radio/rx', '/cmd_force'))
                        for t in topics), topics
+        # Only the beacon (its GPS subscription) is in the executor with the container
+        # and the probe: the others have nothing to wait for.
+        assert set(executor.get_nodes()) == {container, probe, container.agents[0]}
         assert spin_until(executor, lambda: bool(commands), 10.0)
         first = commands[0]
         assert sorted(first.ids) == [0, 1, 2]

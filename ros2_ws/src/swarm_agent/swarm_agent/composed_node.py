@@ -43,6 +43,7 @@ import sys
 from rcl_interfaces.msg import ParameterDescriptor
 import rclpy
 from rclpy.clock import ROSClock
+from rclpy.event_handler import EventHandler
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -77,10 +78,13 @@ SHARED = {
 
 
 def _has_callbacks(node: Node) -> bool:
-    """Whether the executor has anything of ``node`` to wait for."""
-    return any(next(iter(entities), None) is not None for entities in (
-        node.subscriptions, node.timers, node.services, node.clients, node.guards,
-        node.waitables))
+    """Whether the executor has anything of ``node`` to wait for besides QoS event
+    handlers (rclpy gives every node's /parameter_events publisher two, which only log
+    an incompatible-QoS warning)."""
+    if any(next(iter(entities), None) is not None for entities in (
+            node.subscriptions, node.timers, node.services, node.clients, node.guards)):
+        return True
+    return any(not isinstance(w, EventHandler) for w in node.waitables)
 
 
 class ComposedAgents(Node):
