@@ -296,3 +296,27 @@ def test_a_proximity_rate_of_zero_turns_the_sensor_off(tmp_path):
         assert _until(executor, lambda: sim.t > 0.5)
         topics = {name for name, _ in probe.get_topic_names_and_types()}
         assert not any(t.endswith('/proximity') for t in topics), topics
+
+
+def test_one_tx_callback_takes_every_queued_radio_batch(tmp_path):
+    """One process per agent sends one /radio/tx batch per agent: the world's callback
+    drains what waits behind the batch it was given (rclpy takes one message per
+    subscription per wait; 50 agents' batches queued for seconds of sim time)."""
+    from rclpy.qos import QoSProfile
+
+    from swarm_agent.conversions import frames_to_msg
+    from swarm_mission import qos
+    from swarm_msgs.msg import RadioPacketArray
+
+    with _world(tmp_path, THREE) as (executor, sim, probe):
+        tx = probe.create_publisher(RadioPacketArray, '/radio/tx', QoSProfile(**qos.RADIO))
+        assert _until(executor, lambda: tx.get_subscription_count() > 0)
+        calls = []
+        drain = sim._on_tx
+        sim._tx_sub.callback = lambda msg: (calls.append(1), drain(msg))
+        for k in range(30):
+            tx.publish(frames_to_msg([(0.0, Packet(source=1, destination=BROADCAST, kind=0,
+                                                   sequence=k, ttl=1, payload=b'x'))]))
+        assert _until(executor, lambda: sim.medium.stats.sent >= 30)
+        assert sim.medium.stats.sent == 30
+        assert len(calls) < 30          # taken in fewer callbacks than messages
