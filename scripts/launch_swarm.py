@@ -6,7 +6,8 @@
 
 Starts, in an isolated ROS domain on localhost: the pybullet ``sim_node`` (owner of
 ``/clock``), the ``mission_node`` and the agents, either one ``agent_node`` process per
-robot (default, the faithful deployment) or all agents in one ``composed_node`` process
+robot (default, the faithful deployment; forked from one process that has imported
+``agent_node``, ``swarm_agent.prefork``) or all agents in one ``composed_node`` process
 (``--composed``, for scale). A monitor node in this process records truth and agent
 states and prints a live progress line. The run ends at ``--duration`` seconds of sim
 time, once the swarm has stayed settled (eq. 4.1) for ``--settle-hold`` seconds after
