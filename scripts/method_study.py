@@ -72,6 +72,15 @@ def _coverage(record) -> dict:
             'switch_times': switch_times, 'lags': lags}
 
 
+def _badness(mean: dict, key: str) -> tuple[float, float]:
+    """Sort key of a method for the worst-method mark of ``key`` (higher is worse). For
+    settling time a method that leaves trials unsettled is worse than any that settles
+    them all (its mean is over the settled trials only, or missing)."""
+    if key == 'settling_time':
+        return -mean.get('settled_fraction', 0.0), mean.get(key, np.inf)
+    return 0.0, mean.get(key, -np.inf)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--shape', default='thesis_shape_1')
@@ -113,14 +122,17 @@ def main(argv: list[str] | None = None) -> int:
     means = {m: summarize(g) for m, g in groups.items()}
     lines = ['| Method | ' + ' | '.join(label for _, label, _, _ in TABLE_KEYS) +
              ' | Lower bound [m] |', '|---' * (len(TABLE_KEYS) + 2) + '|']
-    worst = {key: max(METHODS, key=lambda m: means[m].get(key, -np.inf))
+    worst = {key: max(METHODS, key=lambda m, k=key: _badness(means[m], k))
              for key, _, _, _ in TABLE_KEYS}
     for m in METHODS:
         cells = []
         for key, _, digits, _ in TABLE_KEYS:
             v = means[m].get(key)
             mark = ' (worst)' if worst[key] == m else ''
-            cells.append('n/a' if v is None else f'{v:.{digits}f}{mark}')
+            text = 'never' if v is None else f'{v:.{digits}f}'
+            if key == 'settling_time' and means[m]['settled_fraction'] < 1.0:
+                text += f' ({means[m]["settled_fraction"]:.0%} settled)'
+            cells.append(text + mark)
         bound = means[m].get('displacement_lower_bound')
         bound_cell = 'n/a' if bound is None else f'{bound:.0f}'
         lines.append(f'| {m} | ' + ' | '.join(cells) + f' | {bound_cell} |')
