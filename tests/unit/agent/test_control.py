@@ -403,3 +403,20 @@ def test_lqr_report_writes_gains_and_step_plot(tmp_path, capsys):
         refit = design_lqr(robot, LqrDesign(t1=1.0 / fit['q1'], u_max=fit['u1max_N']))
         assert (refit.k_e, refit.k_v) == pytest.approx((table['k_e'], table['k_v']), rel=1e-6)
     assert lqr_report.main(['--robot-types', str(tmp_path / 'missing.yaml')]) == 2
+
+
+def test_control_yaml_states_the_setpoint_and_forces_defaults():
+    """config/control.yaml documents SetpointParams and ForceParams: keep them equal."""
+    import dataclasses
+    import pathlib
+
+    import yaml
+
+    path = (pathlib.Path(__file__).resolve().parents[3] / 'ros2_ws' / 'src' / 'swarm_agent'
+            / 'config' / 'control.yaml')
+    data = yaml.safe_load(path.read_text())
+    for section, params in (('setpoint', SetpointParams()), ('forces', ForceParams())):
+        defaults = dataclasses.asdict(params)
+        assert set(data[section]) <= set(defaults), f'{section}: unknown keys'
+        for key, value in data[section].items():
+            assert defaults[key] == pytest.approx(value), f'{section}.{key}'
