@@ -275,6 +275,8 @@ class AgentBrain:
     def on_packet(self, t: float, packet: Packet) -> None:
         """A packet heard on the radio: route it, and consume what is for this agent."""
         out = self.router.on_packet(t, packet)
+        if not (out.packets or out.delivered):
+            return
         self._outbox.extend(out.packets)
         for item in out.delivered:
             try:

@@ -105,6 +105,11 @@ def decode_routed_header(data: bytes) -> tuple[int, int]:
     return _ROUTED.unpack_from(data)
 
 
+def routed_key(data: bytes) -> tuple[int, int] | None:
+    """(origin, second) of a routed frame, or None when it is too short to be one."""
+    return _ROUTED.unpack_from(data) if len(data) > _ROUTED.size else None
+
+
 ROUTED_HEADER_SIZE = _ROUTED.size
 
 
