@@ -247,6 +247,9 @@ def validate(args: argparse.Namespace):
         raise LaunchError(f'unknown method {args.method!r}; use bubble, fractal or forces')
     if args.agents < 1:
         raise LaunchError(f'--agents must be at least 1, got {args.agents}')
+    if not 0.0 < args.control_rate < float('inf'):
+        raise LaunchError(f'--control-rate must be a positive rate in Hz, got '
+                          f'{args.control_rate:g}; the thesis inner loop runs at 50')
     beacons = args.beacons if args.beacons is not None else max(3, round(0.15 * args.agents))
     args.local_ids = parse_agent_ids(args.local_agents, args.agents)
     split = args.agents_only or len(args.local_ids) < args.agents

@@ -146,3 +146,9 @@ def test_faults_outside_the_run_or_the_shape_are_refused():
     with pytest.raises(LaunchError, match='--radio-off acts from the host that runs the sim'):
         _validate('--agents-only', '--local-agents', '4-7', '--domain', '42',
                   '--radio-off', '60:5')
+
+
+@pytest.mark.parametrize('rate', ['0', '-5', 'nan', 'inf'])
+def test_a_control_rate_that_is_not_a_positive_rate_is_refused(rate):
+    with pytest.raises(LaunchError, match='^--control-rate must be a positive rate'):
+        _validate('--control-rate', rate)
