@@ -410,11 +410,12 @@ class SimNode(Node):
         1000 a simulated second, which queued here (reliable, depth 1000) until frames
         went on the air up to 1.4 s late and cost rows missed their consensus round
         (round agreement 0.19). So the callback drains the queue, as the executor would
-        take each message (``take_message`` on the subscription's handle).
+        take each message (``take_message`` on the subscription's handle), up to a few
+        batches per robot so that a flood of batches cannot hold the world's step.
         """
         self._transmit(msg)
         sub = self._tx_sub
-        while True:
+        for _ in range(4 * self.n):
             with sub.handle:
                 taken = sub.handle.take_message(sub.msg_type, sub.raw)
             if taken is None:
