@@ -309,11 +309,12 @@ class AgentBrain:
             self._command = avoid_collisions(self._setpoint, offsets, radii,
                                              self.robot.coverage_radius, self.config.setpoint,
                                              parked=self._parked)
-        if self._yielding and not self._command.any():
+        commanded = bool(self._command.any())
+        if self._yielding and not commanded:
             # The neighbour has gone: back to the goal, and park there again (the
             # resume hysteresis is for localization noise, not for a real push).
             self._yielding = self._parked = False
-        if self._parked and not self._command.any():
+        if self._parked and not commanded:
             if self._parked_since is None:
                 self._parked_since = t
             self._force = np.zeros(2)
