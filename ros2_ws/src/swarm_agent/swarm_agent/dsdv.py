@@ -33,8 +33,10 @@
   frames heard). k adapts to the loss the node sees on its neighbours' heartbeats:
   with loss p, a robot that missed the first copy misses all k(1 - p) copies sent by
   robots that got it with probability p^(1 + k(1 - p)); k is the least that keeps this
-  under ``flood_miss_target``, and at least ``flood_extra_copies``. Measured on the 50-agent thesis scenario (first 60 s): self-pruning alone
-  let 489 of 501 flood frames a second through; see ``_should_relay``.
+  under ``flood_miss_target``, and at least ``flood_extra_copies``.
+  Measured on the 50-agent thesis scenario (seed 0, to settling): self-pruning with a
+  15 % share delivered 3.99 million frames, this scheme 1.63 million; in the first 60 s
+  flood frames sent fell from 501 to 245 a second.
 
 Malformed, truncated or unknown frames are counted in ``stats`` and dropped.
 """
