@@ -139,6 +139,7 @@ class DsdvRouter:
         self.two_hop: dict[int, set[int]] = {}  # neighbour -> its advertised neighbours
         # neighbour -> [last heartbeat time, heartbeats heard, heartbeats sent] (decayed)
         self._beats: dict[int, list[float]] = {}
+        self._copies = self.config.flood_extra_copies  # k, renewed at every heartbeat sent
         # Flood relay decisions depend only on the two-hop view: they are kept until it
         # changes (a neighbour gained or lost, or a neighbour's set changed).
         self._silent_after: dict[int, bool] = {}  # previous hop -> stay silent?
@@ -156,6 +157,7 @@ class DsdvRouter:
         # a tenth of the headless evaluator's time).
         self._next_expiry = math.inf
         self._dirty = False
+        self._wake = 0.0   # earliest of the three timers above: before it, tick() is idle
         self._seen: OrderedDict[tuple[int, int], None] = OrderedDict()
         self._partial: dict[tuple[int, int, int], tuple[float, dict[int, bytes]]] = {}
         self.stats: dict[str, int] = {}
@@ -199,6 +201,8 @@ class DsdvRouter:
     # ------------------------------------------------------------------ timers
     def tick(self, t: float) -> list[Packet]:
         """Heartbeats, neighbour timeouts, full dumps and triggered updates due at ``t``."""
+        if t < self._wake and not self._dirty and not self._partial:
+            return []
         out: list[Packet] = []
         if t > self._next_expiry:
             timeout = self.config.neighbour_timeout_s
@@ -208,6 +212,7 @@ class DsdvRouter:
             self._next_expiry = min(self.heard.values(), default=math.inf) + timeout
         if t >= self._next_heartbeat:
             self._next_heartbeat = t + self.config.heartbeat_period_s
+            self._copies = self._extra_copies()
             info = self._info() if callable(self._info) else self._info
             out.append(self._packet(BROADCAST, Kind.HEARTBEAT,
                                     wire.encode_heartbeat(self.sequence, info), ttl=1))
@@ -237,6 +242,7 @@ class DsdvRouter:
             if t - started > self.config.reassembly_timeout_s:
                 del self._partial[key]
                 self._count('fragments_expired')
+        self._wake = min(self._next_expiry, self._next_heartbeat, self._next_full)
         return out
 
     def _break_link(self, neighbour: int) -> None:
@@ -348,6 +354,7 @@ class DsdvRouter:
         self.heard[neighbour] = t
         if self._next_expiry == math.inf:
             self._next_expiry = t + self.config.neighbour_timeout_s
+            self._wake = min(self._wake, self._next_expiry)
         route = self.table.get(neighbour)
         if seq is None:
             if route is None:
@@ -390,7 +397,7 @@ class DsdvRouter:
             silent = self._silent_after[previous_hop] = self._covered(previous_hop)
         if not silent:
             return True
-        copies = self._extra_copies()
+        copies = self._copies
         if copies <= 0.0:
             return False
         fraction = copies / max(len(self.heard), 1)
