@@ -143,7 +143,7 @@ class DsdvRouter:
         # Flood relay decisions depend only on the two-hop view: they are kept until it
         # changes (a neighbour gained or lost, or a neighbour's set changed).
         self._silent_after: dict[int, bool] = {}  # previous hop -> stay silent?
-        self._higher: list[set[int]] | None = None
+        self._higher: set[int] | None = None
         self._info: bytes | Callable[[], bytes] = b''
         self._tx_seq = 0
         self._flood_id = 0
@@ -422,31 +422,31 @@ class DsdvRouter:
         need.discard(previous_hop)
         if not need:
             return True   # self-pruning: the sender reached every neighbour of ours
-        # Rule k joined with the sender: higher-id groups linked to it add their reach. (A
-        # group not linked to the sender cannot reach it, our neighbour, so never helps.)
+        # Rule k joined with the sender: walk from the sender through higher-id neighbours
+        # linked to it, adding what each reaches, until all our neighbours are reached. (A
+        # higher-id group not linked to the sender cannot reach it, our neighbour, so it
+        # never helps.) Links are read from one side, by set intersections in C: a link
+        # one side does not advertise yet only makes this node relay.
+        two_hop = self.two_hop
+        remaining = self._higher_neighbours() - {previous_hop}
         joined = set(sender_reach)
-        for reach in self._higher_groups():
-            if previous_hop in reach:
-                joined |= reach
-        return need <= joined
+        frontier = [previous_hop]
+        while frontier:
+            linked = two_hop[frontier.pop()] & remaining
+            if linked:
+                remaining -= linked
+                joined |= linked
+                for w in linked:
+                    joined |= two_hop[w]
+                if need <= joined:
+                    return True
+                frontier.extend(linked)
+        return False
 
-    def _higher_groups(self) -> list[set[int]]:
-        """Closed neighbourhoods of the connected groups of higher-id neighbours."""
+    def _higher_neighbours(self) -> set[int]:
+        """Neighbours with a higher id whose neighbourhood is known (kept per view)."""
         if self._higher is None:
-            two_hop = self.two_hop
-            remaining = {z for z in self.heard if z > self.id and z in two_hop}
-            groups = []
-            while remaining:
-                members = {remaining.pop()}
-                frontier = list(members)
-                while frontier:
-                    z = frontier.pop()
-                    linked = {w for w in remaining if w in two_hop[z] or z in two_hop[w]}
-                    remaining -= linked
-                    members |= linked
-                    frontier.extend(linked)
-                groups.append(members.union(*(two_hop[z] for z in members)))
-            self._higher = groups
+            self._higher = {z for z in self.heard if z > self.id and z in self.two_hop}
         return self._higher
 
     def _merge(self, neighbour: int, adverts: list[Advert]) -> None:
