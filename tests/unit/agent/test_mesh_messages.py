@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from swarm_agent import wire
 from swarm_agent.mesh_messages import CostRow, MeshMessageError, NeighbourInfo
 
 
@@ -23,6 +24,23 @@ def test_cost_row_quantises_to_centimetres_and_keeps_unreachable():
     assert np.isinf(back.costs[3])
     # 20 goals of one type (the thesis swarm) fit in one 100-byte frame.
     assert len(CostRow.from_costs(1, 1, 1, 1, np.ones(20)).encode()) <= 100
+
+
+def test_forty_goal_rows_fit_one_frame_and_long_paths_stay_exact():
+    """A 100-robot thesis swarm has 40 goals of types 1 and 2: with 16-bit centimetre
+    costs (up to 655.34 m) the row is one flood frame, not two fragments. A longer path
+    switches the row to 32-bit costs, still exact to the centimetre."""
+    short = np.linspace(0.0, 655.34, 40)
+    short[7] = np.inf
+    row = CostRow.from_costs(3, 1, 2, 9, short)
+    assert len(wire.split_message(row.encode(), 0)) == 1
+    assert CostRow.decode(row.encode()) == row
+    long = short.copy()
+    long[0] = 655.35          # 65535 cm: no longer a 16-bit cost
+    wide = CostRow.from_costs(3, 1, 2, 9, long)
+    back = CostRow.decode(wide.encode())
+    assert back == wide and back.quantised[0] == 65535 and np.isinf(back.costs[7])
+    assert len(wire.split_message(wide.encode(), 0)) == 2
 
 
 @pytest.mark.parametrize('bad', [b'', b'\x01', b'\x02' + bytes(5), bytes(24)])

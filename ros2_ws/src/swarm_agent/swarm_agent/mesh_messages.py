@@ -11,7 +11,10 @@ agents put in them, in a compact fixed binary layout so that one message fits on
 - ``CostRow``: one agent's costs to the goals of its type for one consensus round
   (thesis 3.2.2.2), flooded to the whole mesh. Costs are quantised to centimetres:
   the quantised numbers are the ones every agent feeds to the Hungarian algorithm,
-  so agents holding the same rows compute bit-identical matrices.
+  so agents holding the same rows compute bit-identical matrices. A row whose costs
+  are all below 655.35 m goes out with 16-bit costs, so 40 goals (the larger types of
+  a 100-robot thesis swarm) fit one frame instead of two; a longer one with 32-bit
+  costs, flagged by the top bit of the goal count. Both decode to the same row.
 
 Every decoder raises ``MeshMessageError`` (a ValueError) on malformed bytes.
 """
@@ -33,7 +36,8 @@ COST_UNREACHABLE = 0xFFFFFFFF  # wire value of an infinite cost
 
 _INFO = struct.Struct('<BBBBfffff')         # kind, type, flags, mode, x, y, vx, vy, std
 _ROW_HEADER = struct.Struct('<BHBIIH')      # kind, agent, type, goal_version, round, count
-_ROW_COST = 'I'
+_NARROW_UNREACHABLE = 0xFFFF   # 16-bit wire value of an infinite cost
+_WIDE = 0x8000                 # goal-count flag: 32-bit costs
 
 FLAG_BEACON = 0x01
 FLAG_SETTLED = 0x02
@@ -114,10 +118,20 @@ class CostRow:
         return np.where(q == COST_UNREACHABLE, np.inf, q * COST_QUANTUM_M)
 
     def encode(self) -> bytes:
-        """Pack into 14 + 4 * len(costs) bytes (the router fragments if needed)."""
+        """Pack into 14 + 2 * len(costs) bytes, or 14 + 4 * len(costs) when a finite cost
+        is 655.35 m or more (the router fragments if needed)."""
+        count = len(self.quantised)
+        if count >= _WIDE:
+            raise MeshMessageError(f'a cost row holds at most {_WIDE - 1} goals, got {count}')
+        wide = any(q >= _NARROW_UNREACHABLE and q != COST_UNREACHABLE for q in self.quantised)
+        if wide:
+            body = struct.pack(f'<{count}I', *self.quantised)
+        else:
+            body = struct.pack(f'<{count}H', *(_NARROW_UNREACHABLE if q == COST_UNREACHABLE
+                                               else q for q in self.quantised))
         return _ROW_HEADER.pack(MSG_COST_ROW, self.agent_id, self.agent_type,
-                                self.goal_version, self.round, len(self.quantised)) + \
-            struct.pack(f'<{len(self.quantised)}{_ROW_COST}', *self.quantised)
+                                self.goal_version, self.round,
+                                count | (_WIDE if wide else 0)) + body
 
     @classmethod
     def decode(cls, data: bytes) -> CostRow:
@@ -127,11 +141,17 @@ class CostRow:
         kind, agent, agent_type, goal_version, round_, count = _ROW_HEADER.unpack_from(data)
         if kind != MSG_COST_ROW:
             raise MeshMessageError(f'not a cost row (kind {kind})')
-        expected = _ROW_HEADER.size + 4 * count
+        wide = bool(count & _WIDE)
+        count &= _WIDE - 1
+        expected = _ROW_HEADER.size + (4 if wide else 2) * count
         if len(data) != expected:
             raise MeshMessageError(
                 f'cost row of {count} goals must be {expected} bytes, got {len(data)}')
-        quantised = struct.unpack_from(f'<{count}{_ROW_COST}', data, _ROW_HEADER.size)
+        if wide:
+            quantised = struct.unpack_from(f'<{count}I', data, _ROW_HEADER.size)
+        else:
+            quantised = tuple(COST_UNREACHABLE if q == _NARROW_UNREACHABLE else q
+                              for q in struct.unpack_from(f'<{count}H', data, _ROW_HEADER.size))
         return cls(agent, agent_type, goal_version, round_, tuple(quantised))
 
 
