@@ -337,10 +337,11 @@ def test_agents_outside_the_shape_are_pulled_inwards():
             continue
         f = shape_force(z, inside=False)
         assert np.dot(f, -z) > 0.95 * np.linalg.norm(f) * np.linalg.norm(z)
-    # Far away, eq. 3.81 is k_a (centroid - z) and eq. 3.90 is k_t along the unit vector.
+    # Far away, eq. 3.81 is k_a (centroid - z) and eq. 3.89 is k_t l(C) along the unit
+    # vector (the contour integral of unit vectors that all point the same way).
     z = np.array([60.0, 0.0])
-    expected = params.k_a * -z + params.k_t * np.array([-1.0, 0.0])
-    np.testing.assert_allclose(shape_force(z, inside=False), expected, rtol=0, atol=1.0)
+    expected = params.k_a * -z + params.k_t * 8 * HALF * np.array([-1.0, 0.0])
+    np.testing.assert_allclose(shape_force(z, inside=False), expected, rtol=1e-3, atol=1.0)
 
 
 def test_boundary_repels_inside_agents_towards_the_middle():
@@ -357,10 +358,13 @@ def test_inside_agents_are_pushed_apart_by_eq_3_88():
     f_b = formation_force(b, np.zeros(2), True, CONTOUR, [a], [r], r, None, params)
     assert np.dot(f_a, a - b) > 0 and np.dot(f_b, b - a) > 0
     np.testing.assert_allclose(f_a, -f_b, atol=1e-9)          # symmetric pair
-    # Member part: k_m (z_i - z_j) / d / (d - d_o)^2 with d_o = r_i + r_j (eq. 3.87).
+    # Member part: k_m (z_i - z_j) / d / (d - d_o)^2 with d_o = r_i + r_j (eq. 3.87),
+    # shifted by its value at member_range so that it vanishes there without a jump.
     member = f_a - shape_force(a, inside=True, params=params)
     d, d_o = 0.6, 2 * r
-    np.testing.assert_allclose(member, [params.k_m / (d - d_o) ** 2, 0.0], rtol=1e-12)
+    shift = params.k_m / (params.member_range - d_o) ** 2
+    np.testing.assert_allclose(member, [params.k_m / (d - d_o) ** 2 - shift, 0.0],
+                               rtol=1e-12)
     # Beyond member_range a neighbour exerts nothing.
     far = formation_force(a, np.zeros(2), True, CONTOUR, [[0.3, params.member_range + 1]],
                           [r], r, None, params)

@@ -97,7 +97,6 @@ class BrainConfig:
     range_stale_s: float = 2.0           # TOA ranges older than this are not used
     proximity_stale_s: float = 0.5       # proximity scans older than this are not used
     forces_contour_step: float = 0.05    # m, boundary sample spacing for the forces method
-    forces_speed_per_newton: float = 0.002  # m/s per N: forces method setpoint scaling
     hold_radius: float = 0.3             # m: within this of the goal the agent parks
     resume_radius: float = 0.8           # m: a parked agent moves again beyond this
     # A parked robot (zero force) has stopped after this long (dry friction stops one at
@@ -519,7 +518,10 @@ class AgentBrain:
         return velocity_setpoint(position, target, self.config.setpoint, waypoints=waypoints)
 
     def _forces_setpoint(self, t: float) -> np.ndarray:
-        """Artificial forces (3.2.1.1) turned into a velocity setpoint."""
+        """Artificial forces (3.2.1.1) turned into a velocity setpoint: the steady velocity
+        of a mass with viscous and dry friction under the force (``ForceParams.setpoint``).
+        An agent the force cannot move parks, as at a goal; it counts as at rest (static
+        friction) once it has stood parked through a step."""
         offsets, radii = self._neighbour_offsets(t)
         position = self.localizer.position
         force = formation_force(position, self.localizer.velocity,
@@ -527,7 +529,8 @@ class AgentBrain:
                                 position + offsets, radii,
                                 self.robot.coverage_radius, self._obstacle_samples,
                                 self.config.forces)
-        v = force * self.config.forces_speed_per_newton
-        speed = float(np.hypot(*v))
-        v_max = self.config.setpoint.v_max
-        return v * (v_max / speed) if speed > v_max else v
+        at_rest = self._parked_since is not None
+        v = self.config.forces.setpoint(force, self.config.setpoint.v_max, at_rest)
+        if not v.any():
+            self._park()
+        return v
