@@ -757,11 +757,6 @@ def main(argv: list[str] | None = None) -> int:
             heard = [a for a, st in zip(monitor.agent_ids, monitor.states) if st is not None]
         goal_versions = monitor.goal_version
         spin_thread.join(timeout=5.0)
-
-
-        def close_ros() -> None:
-            monitor.destroy_node()
-            rclpy.try_shutdown()
     print()
     from swarm_sim.report import run_report, write_metrics
 
@@ -810,7 +805,7 @@ def main(argv: list[str] | None = None) -> int:
         print('launch_swarm: --set-sim not applied: ' + '; '.join(
             f'{e["name"]}={e["value"]:g} at {e["time"]:g} s ({e["reason"]})' for e in failed),
             file=sys.stderr)
-    close_ros_or_exit(close_ros)
+    close_ros_or_exit(lambda: (monitor.destroy_node(), rclpy.try_shutdown()))
     return 1 if crashed or (failed and outcome != 'interrupted') else 0
 
 
