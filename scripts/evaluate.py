@@ -34,7 +34,7 @@ import pathlib
 import sys
 
 from swarm_agent.setpoint import SetpointParams
-from swarm_mission.mission import load_sequence
+from swarm_mission.mission import load_sequence, parse_morph, REMESH
 from swarm_mission.partition import PartitionError
 from swarm_mission.robot_types import default_type_counts, parse_type_counts, RobotTypeError
 from swarm_mission.shapes import load_shape, ShapeError
@@ -70,6 +70,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument('--duration', type=float, default=600.0,
                         help='maximum simulated seconds per trial')
     parser.add_argument('--sequence', default='', help='YAML/JSON shape sequence file')
+    parser.add_argument('--morph', default='', metavar='KIND:AMOUNT@START+DURATION',
+                        help='a smooth shape change (move metres along x, rotate degrees, '
+                             'grow by 1+AMOUNT), e.g. move:15@150+60; not with --sequence')
+    parser.add_argument('--remesh', choices=REMESH, default='incremental',
+                        help='bubble packing on a changed shape: goals move keeping their '
+                             'ids (incremental) or are partitioned anew and re-assigned')
     parser.add_argument('--remove', action='append', default=[],
                         help='remove agents mid-run, e.g. --remove 60:3,17 (time:ids)')
     parser.add_argument('--loss', type=float, default=0.0, help='radio packet loss 0..1')
@@ -90,6 +96,10 @@ def build_scenario(args: argparse.Namespace, seed: int) -> Scenario:
     sequence = load_sequence(args.sequence, scale=args.shape_scale) if args.sequence else ()
     if sequence and sequence[0].time <= 0.0:
         shape, sequence = sequence[0].shape, sequence[1:]
+    if args.morph:
+        if args.sequence:
+            raise ScenarioError('give either --sequence or --morph, not both')
+        sequence = parse_morph(args.morph, shape)
     removals = []
     for spec in args.remove:
         try:
@@ -100,7 +110,7 @@ def build_scenario(args: argparse.Namespace, seed: int) -> Scenario:
     return Scenario(shape=shape, method=args.method, type_counts=counts, n_beacons=beacons,
                     seed=seed, duration_s=args.duration, sequence=sequence,
                     removals=removals, medium=MediumConfig(loss=args.loss),
-                    control_dt=1.0 / args.control_rate)
+                    control_dt=1.0 / args.control_rate, remesh=args.remesh)
 
 
 def run_trial(args: argparse.Namespace, seed: int) -> TrialRecord:

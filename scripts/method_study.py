@@ -2,14 +2,22 @@
 """Compare the three formation methods (thesis Table 4.4) and dynamic formations (4.3.4).
 
 Runs the headless evaluator (``swarm_sim.headless``) for bubble packing, randomized
-fractals and artificial forces on the same seeds, then a shape sequence for bubble
-packing and forces, and writes into --out:
+fractals and artificial forces on the same seeds; then, for bubble packing (incremental
+re-mesh, and re-meshed from scratch as the thesis's latency mechanism) and forces, an
+abrupt shape switch and smooth shape changes (``--morphs``, 4.3.4's "changed
+dynamically in a smooth fashion"). Writes into --out:
 
-  comparison.json   per-method means and the per-trial metrics
-  comparison.md     a table like thesis Tables 4.5-4.9 plus the worst-method marks of Table 4.4
+  comparison.json   per-method means, the per-trial metrics and the dynamic results
+  comparison.md     a table like thesis Tables 4.5-4.9 with the worst-method marks of
+                    Table 4.4, and the dynamic-formation table
   boxplots.png      displacement, settling time, epsilon_t, epsilon_g per method
-  coverage_lag.png  fraction of agents inside the current shape after each switch
+  coverage_lag.png  agents inside the current shape after the switch, and the coverage
+                    dispersion through each smooth change (first seed)
   coverage_lag.json lag per switch and method (time until 95 % of the agents are inside)
+
+The response to a smooth change is the mean ``coverage_dispersion`` (mean distance
+from the shape in force to the nearest robot, 1 for an even hexagonal spread) from the
+first change until 20 s after the last.
 
   scripts/env.sh python scripts/method_study.py --agents 50 --trials 4 --workers 2 \\
       --out results/method_study
@@ -25,42 +33,57 @@ import sys
 
 import numpy as np
 
-from swarm_mission.mission import SequenceStep
+from swarm_mission.mission import parse_morph, SequenceStep
 from swarm_mission.robot_types import default_type_counts
 from swarm_mission.shapes import load_shape, ShapeError
 from swarm_sim import plots
 from swarm_sim.headless import HeadlessSwarm, Scenario
-from swarm_sim.metrics import inside_mask
+from swarm_sim.metrics import coverage_dispersion, inside_mask
 from swarm_sim.report import summarize
 
 METHODS = ('bubble', 'fractal', 'forces')
+# Dynamic formations: (label, method, remesh).
+DYNAMIC = (('bubble', 'bubble', 'incremental'), ('bubble, scratch', 'bubble', 'scratch'),
+           ('forces', 'forces', 'incremental'))
+SETTLE_AFTER_S = 20.0   # the smooth-change window ends this long after the last change
 TABLE_KEYS = (('total_displacement', 'Total displacement [m]', 0, 'min'),
               ('settling_time', 'Settling time [s]', 0, 'min'),
               ('epsilon_t', 'eps_t', 2, 'min'), ('epsilon_g', 'eps_g', 2, 'min'))
 
 
 def _trial(method: str, shape_name: str, agents: int, beacons: int, seed: int,
-           duration: float, sequence: tuple[tuple[float, str], ...] = ()) -> dict:
+           duration: float, sequence: tuple[tuple[float, str], ...] = (),
+           morph: str = '', remesh: str = 'incremental', label: str = '') -> dict:
     shape = load_shape(shape_name)
     steps = [SequenceStep(t, load_shape(name)) for t, name in sequence]
+    if morph:
+        steps = parse_morph(morph, shape)
+        # The response is judged up to SETTLE_AFTER_S after the last change.
+        duration = min(duration, steps[-1].time + 2 * SETTLE_AFTER_S)
     scenario = Scenario(shape=shape, method=method, type_counts=default_type_counts(agents),
-                        n_beacons=beacons, seed=seed, duration_s=duration, sequence=steps)
+                        n_beacons=beacons, seed=seed, duration_s=duration, sequence=steps,
+                        remesh=remesh)
     record = HeadlessSwarm(scenario).run()
-    result = dict(record.metrics, method=method, seed=seed)
+    result = dict(record.metrics, method=label or method, seed=seed, morph=morph)
     if steps:
-        result['coverage'] = _coverage(record)
+        result['coverage'] = response(record)
+        if morph:
+            result['dispersion_during'] = window_mean(result['coverage'], SETTLE_AFTER_S)
     return result
 
 
-def _coverage(record) -> dict:
-    """Fraction of living agents inside the shape in force at each recorded time."""
+def response(record) -> dict:
+    """Per recorded time, the share of living agents inside the shape in force and the
+    coverage dispersion of that shape; per switch, the lag until 95 % are inside."""
     switch_times = [t for t, _ in record.shapes]
-    fractions = []
+    fractions, dispersion = [], []
     for k, t in enumerate(record.times):
         current = max(i for i, s in enumerate(switch_times) if s <= t + 1e-9)
-        alive = record.alive[k]
-        inside = inside_mask(record.shapes[current][1], record.positions[k][alive])
+        shape = record.shapes[current][1]
+        alive = record.positions[k][record.alive[k]]
+        inside = inside_mask(shape, alive)
         fractions.append(float(np.mean(inside)) if len(inside) else 0.0)
+        dispersion.append(coverage_dispersion(shape, alive))
     fractions = np.array(fractions)
     lags = []
     for i, start in enumerate(switch_times[1:], start=1):
@@ -69,7 +92,18 @@ def _coverage(record) -> dict:
         ok = np.flatnonzero(window & (fractions >= 0.95))
         lags.append(float(record.times[ok[0]] - start) if len(ok) else None)
     return {'times': record.times.tolist(), 'fraction_inside': fractions.tolist(),
-            'switch_times': switch_times, 'lags': lags}
+            'dispersion': dispersion, 'switch_times': switch_times, 'lags': lags}
+
+
+def window_mean(coverage: dict, after_s: float) -> float:
+    """Mean coverage dispersion from the first shape change until ``after_s`` after the
+    last (the recorded times are evenly spaced, so this is the time average)."""
+    times = np.asarray(coverage['times'])
+    changes = coverage['switch_times'][1:]
+    if not changes:
+        raise ValueError('no shape change in this run')
+    window = (times >= changes[0]) & (times <= changes[-1] + after_s)
+    return float(np.mean(np.asarray(coverage['dispersion'])[window]))
 
 
 def _badness(mean: dict, key: str) -> tuple[float, float]:
@@ -81,12 +115,34 @@ def _badness(mean: dict, key: str) -> tuple[float, float]:
     return 0.0, mean.get(key, -np.inf)
 
 
+def dynamic_table(dispersion: dict[str, dict[str, list[float]]]) -> list[str]:
+    """Markdown rows: mean coverage dispersion through each smooth change per variant,
+    the best (lowest) marked."""
+    if not dispersion:
+        return []
+    labels = [label for label, _, _ in DYNAMIC]
+    lines = ['', 'Coverage dispersion through each smooth shape change (mean from the first '
+             f'change to {SETTLE_AFTER_S:.0f} s after the last; 1 is an even spread; lower '
+             'adapts better):', '', '| Shape change | ' + ' | '.join(labels) + ' |',
+             '|---' * (len(labels) + 1) + '|']
+    for spec, by_label in dispersion.items():
+        means = {label: float(np.mean(v)) if v else np.nan for label, v in by_label.items()}
+        best = min(labels, key=lambda m: (np.isnan(means[m]), means[m]))
+        cells = [f'{means[m]:.2f}' + (' (best)' if m == best else '') for m in labels]
+        lines.append(f'| {spec} | ' + ' | '.join(cells) + ' |')
+    return lines
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--shape', default='thesis_shape_1')
     parser.add_argument('--sequence', nargs='*', default=['thesis_shape_1@0',
                                                           'thesis_shape_2@150'],
                         help='dynamic-formation shapes as NAME@TIME')
+    parser.add_argument('--morphs', nargs='*',
+                        default=['move:15@200+60', 'rotate:90@200+60', 'grow:0.3@200+60'],
+                        help='smooth shape changes of --shape as KIND:AMOUNT@START+DURATION '
+                             '(see evaluate.py --morph); none to skip')
     parser.add_argument('--agents', type=int, default=50)
     parser.add_argument('--beacons', type=int, default=8)
     parser.add_argument('--trials', type=int, default=4)
@@ -101,6 +157,8 @@ def main(argv: list[str] | None = None) -> int:
         sequence = tuple((float(s.split('@')[1]), s.split('@')[0]) for s in args.sequence)
         for _, name in sequence:
             load_shape(name)
+        for spec in args.morphs:
+            parse_morph(spec, load_shape(args.shape))
     except (ShapeError, IndexError, ValueError) as exc:
         print(f'method_study.py: bad shape or sequence: {exc}', file=sys.stderr)
         return 2
@@ -110,14 +168,19 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [(m, args.shape, args.agents, args.beacons, args.seed + k, args.duration, ())
             for m in METHODS for k in range(args.trials)]
     jobs += [(m, sequence[0][1], args.agents, args.beacons, args.seed, args.duration,
-              sequence[1:]) for m in ('bubble', 'forces')]
+              sequence[1:], '', remesh, label) for label, m, remesh in DYNAMIC]
+    jobs += [(m, args.shape, args.agents, args.beacons, args.seed + k, args.duration, (),
+              spec, remesh, label)
+             for spec in args.morphs for label, m, remesh in DYNAMIC
+             for k in range(args.trials)]
     results: list[dict] = []
     with futures.ProcessPoolExecutor(max_workers=args.workers) as pool:
         pending = [pool.submit(_trial, *job) for job in jobs]
         for job in tqdm(futures.as_completed(pending), total=len(pending), unit='trial'):
             results.append(job.result())
     static = [r for r in results if 'coverage' not in r]
-    dynamic = [r for r in results if 'coverage' in r]
+    dynamic = [r for r in results if 'coverage' in r and not r['morph']]
+    morphs = sorted((r for r in results if r.get('morph')), key=lambda r: r['seed'])
     groups = {m: [r for r in static if r['method'] == m] for m in METHODS}
     means = {m: summarize(g) for m, g in groups.items()}
     lines = ['| Method | ' + ' | '.join(label for _, label, _, _ in TABLE_KEYS) +
@@ -139,23 +202,37 @@ def main(argv: list[str] | None = None) -> int:
     lags = {r['method']: r['coverage']['lags'] for r in dynamic}
     lines += ['', 'Coverage lag after each shape switch (s until 95 % of agents inside): ' +
               ', '.join(f'{m}: {v}' for m, v in lags.items())]
+    dispersion = {spec: {label: [r['dispersion_during'] for r in morphs
+                                 if r['morph'] == spec and r['method'] == label]
+                         for label, _, _ in DYNAMIC} for spec in args.morphs}
+    lines += dynamic_table(dispersion)
     (out / 'comparison.md').write_text('\n'.join(lines) + '\n', encoding='utf-8')
     (out / 'comparison.json').write_text(json.dumps(
-        {'means': means, 'trials': static, 'coverage_lag': lags}, indent=2, default=str),
-        encoding='utf-8')
+        {'means': means, 'trials': static, 'coverage_lag': lags,
+         'smooth_change_dispersion': dispersion}, indent=2, default=str), encoding='utf-8')
     plots.boxplots(out / 'boxplots.png', groups,
                    [(k, label) for k, label, _, _ in TABLE_KEYS])
     if dynamic:
         import matplotlib.pyplot as plt
 
-        fig, ax = plt.subplots(figsize=(8, 3.5))
-        for r in dynamic:
-            ax.plot(r['coverage']['times'], r['coverage']['fraction_inside'], label=r['method'])
-        for t in dynamic[0]['coverage']['switch_times'][1:]:
-            ax.axvline(t, color='0.5', ls='--')
-        ax.set_xlabel('t [s]')
-        ax.set_ylabel('agents inside current shape')
-        ax.legend()
+        fig, axes = plt.subplots(1 + len(args.morphs), 1, squeeze=False,
+                                 figsize=(8, 3.0 * (1 + len(args.morphs))))
+        panels = [(axes[0][0], dynamic, 'fraction_inside', 'agents inside current shape',
+                   'switch')]
+        panels += [(axes[k + 1][0], [r for r in morphs if r['morph'] == spec
+                                     and r['seed'] == args.seed],
+                    'dispersion', 'coverage dispersion', spec)
+                   for k, spec in enumerate(args.morphs)]
+        for ax, runs, key, ylabel, title in panels:
+            for r in runs:
+                ax.plot(r['coverage']['times'], r['coverage'][key], label=r['method'])
+            if runs:
+                switches = runs[0]['coverage']['switch_times'][1:]
+                ax.axvspan(switches[0], switches[-1] + 1e-3, color='0.9')
+            ax.set_title(title, fontsize=9)
+            ax.set_xlabel('t [s]')
+            ax.set_ylabel(ylabel)
+            ax.legend(fontsize=8)
         fig.tight_layout()
         fig.savefig(out / 'coverage_lag.png', dpi=110)
         plt.close(fig)

@@ -5,8 +5,12 @@ Pure logic shared by ``mission_node`` and the headless evaluator:
 - ``set_shape`` validates and versions a shape and partitions it into typed goal
   states for the agents believed alive (bubble packing or randomized fractals;
   ``forces`` needs no partition, thesis 3.2.1.1). With bubble packing a changed shape is
-  re-meshed incrementally from the previous goals (the background process of 4.3.4).
-- A ``ShapeSequence`` switches shapes at given times (dynamic formations, 4.3.4).
+  re-meshed incrementally from the previous goals (the background process of 4.3.4):
+  every goal keeps its id, so the agents drive on to their moved goals without waiting
+  for a new assignment. ``remesh='scratch'`` partitions every shape anew instead, with
+  fresh ids, which the agents must re-assign (the latency the thesis describes).
+- A sequence of ``SequenceStep`` switches shapes at given times (dynamic formations,
+  4.3.4); ``morph_sequence`` builds the smooth changes of 4.3.4 from one shape.
 - Agents report liveness (their state messages on ROS, or the brains in the
   evaluator); an agent silent for ``agent_timeout_s`` is declared lost and the shape is
   re-partitioned for the survivors (self-repair).
@@ -28,6 +32,9 @@ from swarm_mission.partition import partition, PartitionResult
 from swarm_mission.shapes import load_shape, Shape, ShapeError
 
 LOG = logging.getLogger(__name__)
+
+REMESH = ('incremental', 'scratch')
+MORPHS = ('move', 'rotate', 'grow')
 
 
 @dataclass(frozen=True)
@@ -75,6 +82,66 @@ def load_sequence(path: str | pathlib.Path, *, scale: float = 1.0) -> list[Seque
     return steps
 
 
+def morph_sequence(shape: Shape, kind: str, amount: float, *, start: float,
+                   duration: float, steps: int) -> list[SequenceStep]:
+    """A shape changing smoothly (4.3.4: "changed dynamically in a smooth fashion").
+
+    ``steps`` shapes evenly spaced over ``duration`` seconds from ``start``; step k of n
+    is the fraction k/n of the change: ``move`` translates the region by ``amount``
+    metres along x, ``rotate`` turns it by ``amount`` degrees about its area centroid,
+    ``grow`` scales it by ``1 + amount`` about that centroid. Workspace obstacles stay
+    where they are. Raises ShapeError naming the bad argument.
+    """
+    from shapely import affinity
+
+    if kind not in MORPHS:
+        raise ShapeError(f'unknown shape change {kind!r}; use one of {", ".join(MORPHS)}')
+    if not (isinstance(steps, int) and steps >= 1):
+        raise ShapeError(f'a shape change needs steps >= 1, got {steps!r}')
+    if not (math.isfinite(start) and math.isfinite(duration) and duration > 0):
+        raise ShapeError(f'a shape change needs a finite start and a duration > 0 s, got '
+                         f'start {start!r}, duration {duration!r}')
+    if not math.isfinite(amount) or (kind == 'grow' and amount <= -1.0):
+        raise ShapeError(f'{kind} amount must be finite' +
+                         (' and above -1 (a scale of 1 + amount)' if kind == 'grow' else '') +
+                         f', got {amount!r}')
+    about = tuple(shape.centroid)
+    sequence = []
+    for k in range(1, steps + 1):
+        f = k / steps
+        if kind == 'move':
+            region = affinity.translate(shape.region, amount * f, 0.0)
+        elif kind == 'rotate':
+            region = affinity.rotate(shape.region, amount * f, origin=about)
+        else:
+            scale = 1.0 + amount * f
+            region = affinity.scale(shape.region, scale, scale, origin=about)
+        sequence.append(SequenceStep(start + duration * (k - 1) / steps,
+                                     Shape(shape.name, region, shape.obstacles)))
+    return sequence
+
+
+def parse_morph(spec: str, shape: Shape) -> list[SequenceStep]:
+    """``morph_sequence`` from ``KIND:AMOUNT@START+DURATION[/STEPS]`` (e.g.
+    ``move:15@150+60``: 15 m along x from 150 s over 60 s). STEPS defaults to one shape
+    every 2 s, the consensus period. Raises ShapeError naming the spec."""
+    try:
+        kind, rest = spec.split(':', 1)
+        amount, rest = rest.split('@', 1)
+        start, rest = rest.split('+', 1)
+        duration, _, steps = rest.partition('/')
+        start_s, duration_s = float(start), float(duration)
+        n = int(steps) if steps else max(1, round(duration_s / 2.0))
+        return morph_sequence(shape, kind, float(amount), start=start_s,
+                              duration=duration_s, steps=n)
+    except ValueError as exc:
+        if isinstance(exc, ShapeError):
+            raise ShapeError(f'shape change {spec!r}: {exc}') from None
+        raise ShapeError(f'bad shape change {spec!r}; write KIND:AMOUNT@START+DURATION'
+                         f'[/STEPS] with KIND one of {", ".join(MORPHS)}, e.g. '
+                         'move:15@150+60') from None
+
+
 @dataclass
 class MissionConfig:
     """Mission parameters (YAML defaults in swarm_mission/config/mission.yaml)."""
@@ -87,8 +154,12 @@ class MissionConfig:
     # goal (0.3 m hold radius + localization error, RMS ~0.5 m), and the outer goals of
     # bubble packing lie only the largest coverage radius inside the contour.
     formation_margin: float = 0.6
+    remesh: str = 'incremental'      # bubble packing on a changed shape: see REMESH
 
     def __post_init__(self) -> None:
+        if self.remesh not in REMESH:
+            raise ShapeError(f'remesh must be one of {", ".join(REMESH)}, got '
+                             f'{self.remesh!r} (mission remesh)')
         if not (math.isfinite(self.formation_margin) and self.formation_margin >= 0.0):
             raise ShapeError(f'formation_margin must be a finite number >= 0 m, got '
                              f'{self.formation_margin!r} (mission formation_margin_m)')
@@ -136,7 +207,8 @@ class Mission:
             self.goal_version += 1
             self.events.append(f'goals v{self.goal_version}: none (forces) for {reason}')
             return True
-        previous = self.goals if (self.config.method == 'bubble' and self.goals) else None
+        previous = self.goals if (self.config.method == 'bubble' and self.goals
+                                  and self.config.remesh == 'incremental') else None
         result = partition(self.shape, self.type_counts(), self.radii, self.config.method,
                            seed=self.config.seed, previous=previous,
                            margin=self.config.formation_margin)

@@ -46,6 +46,8 @@ PARAMETERS = {
     'formation_margin_m': (0.6, 'Partition the shape shrunk by this band (m) so robots '
                                 'parked off their goals under localization error stay '
                                 'inside; 0: the shape as is'),
+    'remesh': ('incremental', 'Bubble packing on a changed shape: incremental (goals '
+                              'move, keeping their ids) or scratch (new goals, re-assigned)'),
 }
 
 
@@ -73,7 +75,7 @@ class MissionNode(Node):
         self.mission = Mission(
             MissionConfig(method=p['method'], seed=p['seed'],
                           agent_timeout_s=p['agent_timeout_s'], repair=p['repair'],
-                          formation_margin=p['formation_margin_m']),
+                          formation_margin=p['formation_margin_m'], remesh=p['remesh']),
             agent_types=agent_types,
             radii={t: r.coverage_radius for t, r in types.items()})
         self._sequence = (load_sequence(p['sequence_file'], scale=p['shape_scale'])

@@ -67,6 +67,7 @@ class Scenario:
     fleet: Sequence[RobotSpec] | None = None
     half_size: float = 50.0
     partition_seed: int | None = None
+    remesh: str = 'incremental'           # bubble packing on a changed shape (MissionConfig)
 
     def validate(self) -> None:
         """Raise ScenarioError with a one-line reason for an impossible setup."""
@@ -135,7 +136,7 @@ class HeadlessSwarm:
         self.mission = Mission(
             MissionConfig(method=scenario.method,
                           seed=scenario.seed if scenario.partition_seed is None
-                          else scenario.partition_seed),
+                          else scenario.partition_seed, remesh=scenario.remesh),
             agent_types={r.id: r.type for r in fleet},
             radii={t: r.coverage_radius for t, r in self.types.items()})
         self.shapes: list[tuple[float, Shape]] = []

@@ -14,6 +14,8 @@ Shared by the headless evaluator and the ROS launcher, so both report the same k
   divided by the 0.5 m/s speed limit it is the least time any method needs to settle.
 - ``min_separation_ratio``: the smallest distance between two robots divided by the sum
   of their coverage radii over the run (below 1 means coverage circles overlapped).
+- ``coverage_dispersion`` (for dynamic formations, 4.3.4): how well robots cover the
+  shape in force at one instant, relative to an even spread.
 """
 
 from __future__ import annotations
@@ -75,6 +77,38 @@ def min_separation_ratio(positions: np.ndarray, radii: np.ndarray) -> float:
         ratio = d / (radii[pairs[:, 0]] + radii[pairs[:, 1]])
         best = min(best, float(ratio.min()))
     return best
+
+
+# Mean distance from the points of a regular hexagon of area a to its centre, over sqrt(a):
+# the least mean distance to the nearest of n robots over a region of area n a (the
+# hexagonal lattice is the optimal covering of the plane; Fejes Toth).
+HEXAGON_MEAN_DISTANCE = 0.3772
+
+
+def coverage_dispersion(shape: Shape, points: np.ndarray, samples: int = 10_000) -> float:
+    """Mean distance from the shape's area to the nearest robot, over the least possible.
+
+    The coverage cost of locational optimisation (Cortes et al., IEEE TRA 2004) with a
+    uniform density, evaluated on a grid of about ``samples`` points of the region and
+    divided by ``HEXAGON_MEAN_DISTANCE * sqrt(area / n)``, its value for n robots on a
+    hexagonal lattice filling the region. 1 is an even spread; robots bunched up, or left
+    outside a shape that moved away from them, raise it. The thesis judges the response
+    to a changing shape by how far the robots' coverage differs from it (Figs.
+    4.37-4.39); this puts a number on that. ``points`` (n, 2); inf when n is 0.
+    """
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    region = shape.region
+    if len(points) == 0 or region.area <= 0.0:
+        return math.inf
+    step = math.sqrt(region.area / samples)
+    x0, y0, x1, y1 = region.bounds
+    gx, gy = np.meshgrid(np.arange(x0 + step / 2, x1, step), np.arange(y0 + step / 2, y1, step))
+    grid = np.column_stack((gx.ravel(), gy.ravel()))
+    grid = grid[shapely.contains_xy(region, grid[:, 0], grid[:, 1])]
+    if len(grid) == 0:
+        return math.inf
+    distance, _ = cKDTree(points).query(grid)
+    return float(distance.mean() / (HEXAGON_MEAN_DISTANCE * math.sqrt(region.area / len(points))))
 
 
 def displacement_lower_bound(initial: np.ndarray, final: np.ndarray, types: np.ndarray,
