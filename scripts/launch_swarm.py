@@ -71,6 +71,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument('--method', default='bubble', help='bubble, fractal or forces')
     p.add_argument('--shape', default='circle_314', help='built-in name or shape file')
     p.add_argument('--sequence', default='', help='YAML/JSON shape sequence [{time, shape}]')
+    p.add_argument('--morph', default='', metavar='KIND:AMOUNT@START+DURATION',
+                   help='smooth change of --shape (move m along x, rotate degrees, grow by '
+                        '1+AMOUNT), e.g. move:15@200+60; not with --sequence')
+    p.add_argument('--remesh', choices=('incremental', 'scratch'), default='incremental',
+                   help='bubble packing on a changed shape: move the goals (incremental) or '
+                        'partition anew and re-assign (scratch)')
     p.add_argument('--duration', type=float, default=300.0, help='sim seconds at most')
     p.add_argument('--half-size', type=float, default=50.0,
                    help='workspace half-width in metres (thesis: 50)')
@@ -296,12 +302,21 @@ def validate(args: argparse.Namespace):
         if args.method != 'forces':
             partition(shape, counts, radii, args.method, seed=args.seed)
         args.last_switch = 0.0
+        if args.sequence and args.morph:
+            raise LaunchError('give either --sequence or --morph, not both')
         if args.sequence:
             from swarm_mission.mission import load_sequence
             for step in load_sequence(args.sequence):
                 args.last_switch = max(args.last_switch, step.time)
                 if args.method != 'forces':
                     partition(step.shape, counts, radii, args.method, seed=args.seed)
+        if args.morph:
+            from swarm_mission.mission import parse_morph
+            final = parse_morph(args.morph, shape)[-1]
+            check_before_end('--morph', [final.time], args.duration)
+            args.last_switch = final.time
+            if args.method != 'forces':
+                partition(final.shape, counts, radii, args.method, seed=args.seed)
         fleet = random_fleet(counts, beacons, np.random.default_rng(args.seed),
                              half_size=args.half_size, obstacles=list(shape.obstacles))
     except (ShapeError, PartitionError, RobotTypeError, ValueError) as exc:
@@ -620,7 +635,10 @@ def main(argv: list[str] | None = None) -> int:
     children.start('sim', ['-m', 'swarm_sim.sim_node', *ros_args(sim_params)])
     mission_params = {'shape': args.shape, 'method': args.method,
                       'fleet_file': str(fleet_file), 'seed': args.seed,
-                      'decentralized': args.decentralized, 'use_sim_time': True}
+                      'remesh': args.remesh, 'decentralized': args.decentralized,
+                      'use_sim_time': True}
+    if args.morph:
+        mission_params['morph'] = args.morph
     if args.sequence:
         mission_params['sequence_file'] = str(pathlib.Path(args.sequence).resolve())
     children.start('mission', ['-m', 'swarm_mission.mission_node', *ros_args(mission_params)])

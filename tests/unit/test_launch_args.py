@@ -152,3 +152,14 @@ def test_faults_outside_the_run_or_the_shape_are_refused():
 def test_a_control_rate_that_is_not_a_positive_rate_is_refused(rate):
     with pytest.raises(LaunchError, match='^--control-rate must be a positive rate'):
         _validate('--control-rate', rate)
+
+
+def test_a_smooth_shape_change_is_checked_against_the_shape_and_the_run():
+    args = _validate('--morph', 'rotate:45@20+10', '--duration', '100')
+    assert args.last_switch == 28.0   # five shapes, one every 2 s from 20 s
+    with pytest.raises(LaunchError, match="unknown shape change 'spin'"):
+        _validate('--morph', 'spin:1@20+10')
+    with pytest.raises(LaunchError, match='after the end of the run'):
+        _validate('--morph', 'move:2@90+30', '--duration', '100')
+    with pytest.raises(LaunchError, match='either --sequence or --morph'):
+        _validate('--morph', 'move:2@20+10', '--sequence', 'tests/data/none.yaml')

@@ -8,7 +8,9 @@ Topics and services
   ``/agent_K/state`` (swarm_msgs/AgentState)              subscribed: liveness for self-repair
 
 The shape comes from the ``shape`` parameter (built-in name or .json/.svg/.png file),
-the topic or the service; ``sequence_file`` switches shapes at given sim times. With
+the topic or the service; ``sequence_file`` switches shapes at given sim times and
+``morph`` changes the shape smoothly (move, rotate, grow). ``remesh`` chooses whether bubble
+packing moves the goals of a changed shape (incremental) or partitions it anew. With
 ``decentralized`` the node only announces shapes: every agent partitions for itself.
 """
 
@@ -25,7 +27,7 @@ import yaml
 
 from swarm_mission import qos
 from swarm_mission.conversions import goals_to_msg, shape_from_msg, shape_to_msg
-from swarm_mission.mission import load_sequence, Mission, MissionConfig
+from swarm_mission.mission import load_sequence, Mission, MissionConfig, parse_morph
 from swarm_mission.partition import PartitionError
 from swarm_mission.robot_types import load_robot_types, parse_type_counts, RobotTypeError
 from swarm_mission.shapes import load_shape, ShapeError
@@ -36,6 +38,9 @@ PARAMETERS = {
     'shape': ('circle_314', 'Initial shape: built-in name or path to .json/.svg/.png'),
     'shape_scale': (1.0, 'Scale applied to SVG/PNG shapes'),
     'sequence_file': ('', 'Optional YAML/JSON shape sequence [{time, shape}, ...]'),
+    'morph': ('', 'Optional smooth change of the shape, KIND:AMOUNT@START+DURATION[/STEPS]: '
+                  'move (m along x), rotate (degrees) or grow (by 1 + AMOUNT), e.g. '
+                  'move:15@200+60; not with sequence_file'),
     'method': ('bubble', 'Partition method: bubble, fractal or forces (no partition)'),
     'fleet_file': ('', 'Fleet YAML (robots: id, type, ...): the swarm composition'),
     'type_counts': ('1:20,2:20,3:10', 'Composition when no fleet file: ids 0.. in type order'),
@@ -78,8 +83,13 @@ class MissionNode(Node):
                           formation_margin=p['formation_margin_m'], remesh=p['remesh']),
             agent_types=agent_types,
             radii={t: r.coverage_radius for t, r in types.items()})
-        self._sequence = (load_sequence(p['sequence_file'], scale=p['shape_scale'])
-                          if p['sequence_file'] else [])
+        if p['sequence_file'] and p['morph']:
+            raise ShapeError('set the mission parameter sequence_file or morph, not both')
+        base = None if p['sequence_file'] else load_shape(p['shape'], scale=p['shape_scale'])
+        if p['sequence_file']:
+            self._sequence = load_sequence(p['sequence_file'], scale=p['shape_scale'])
+        else:
+            self._sequence = parse_morph(p['morph'], base) if p['morph'] else []
         self._next_step = 0
         self._start: float | None = None
 
@@ -93,8 +103,8 @@ class MissionNode(Node):
             self.create_subscription(AgentState, f'/agent_{agent}/state', self._on_state,
                                      QoSProfile(**qos.STATE))
         self.create_timer(0.5, self._on_timer)
-        if not self._sequence:
-            self._apply(load_shape(p['shape'], scale=p['shape_scale']))
+        if base is not None:
+            self._apply(base)
 
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
