@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 import pathlib
+import warnings
 
 import matplotlib
 
@@ -81,7 +82,9 @@ def localization_error(path: pathlib.Path, times: np.ndarray, errors: np.ndarray
     """Error norm of every non-beacon agent over time, with the swarm maximum (Figs. 4.4-4.6)."""
     fig, ax = plt.subplots(figsize=(8, 3.5))
     ax.plot(times, errors, color='0.6', lw=0.4)
-    with np.errstate(all='ignore'):
+    with warnings.catch_warnings():
+        # Before any agent reports, a row is all NaN: nanmax warns and gives NaN (no line).
+        warnings.simplefilter('ignore', RuntimeWarning)
         ax.plot(times, np.nanmax(errors, axis=1), color='tab:red', lw=1.2, label='max')
     ax.set_xlabel('t [s]')
     ax.set_ylabel('|estimate - truth| [m]')
