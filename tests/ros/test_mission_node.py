@@ -1,0 +1,68 @@
+"""mission_node in-process: a smooth shape change (``morph``) publishes moved goals."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import QoSProfile  # noqa: E402
+from spin import ros_context, spin_until  # noqa: E402
+
+from swarm_mission import qos  # noqa: E402
+from swarm_mission.conversions import goals_from_msg  # noqa: E402
+from swarm_mission.mission_node import MissionNode  # noqa: E402
+from swarm_mission.shapes import ShapeError  # noqa: E402
+from swarm_msgs.msg import GoalArray  # noqa: E402
+
+
+def _params(**extra) -> list[Parameter]:
+    values = {'shape': 'circle_314', 'type_counts': '1:3,2:2', 'seed': 1, **extra}
+    return [Parameter(name, value=value) for name, value in values.items()]
+
+
+@pytest.mark.parametrize(('remesh', 'same_ids'), [('incremental', True), ('scratch', False)])
+def test_a_morph_moves_the_goals_step_by_step(remesh, same_ids):
+    with ros_context() as (context, executor):
+        mission = MissionNode(context=context, parameter_overrides=_params(
+            morph='move:4@0.5+2/2', remesh=remesh))
+        probe = rclpy.create_node('probe', context=context)
+        got: dict[int, GoalArray] = {}
+        probe.create_subscription(GoalArray, '/swarm/goals',
+                                  lambda m: got.setdefault(m.version, m),
+                                  QoSProfile(**{**qos.LATCHED, 'depth': 10}))
+        executor.add_node(mission)
+        executor.add_node(probe)
+        try:
+            assert spin_until(executor, lambda: 3 in got, timeout=20.0), sorted(got)
+        finally:
+            mission.destroy_node()
+            probe.destroy_node()
+    goals = {v: sorted(goals_from_msg(got[v]), key=lambda g: g.id) for v in (1, 2, 3)}
+    assert [got[v].shape_version for v in (1, 2, 3)] == [1, 2, 3]
+    # The circle (radius 10 m, centred on the origin) moves 2 m along x per step: every
+    # goal lies inside the circle in force, inside the 0.6 m formation margin.
+    for v in (1, 2, 3):
+        centre = np.array([2.0 * (v - 1), 0.0])
+        assert all(np.hypot(*(np.array([g.x, g.y]) - centre)) < 10.0 - 0.6 for g in goals[v])
+    if same_ids:
+        # Incremental: every goal keeps its id and moves with the shape.
+        assert [g.id for g in goals[3]] == [g.id for g in goals[1]]
+        for k in range(len(goals[1])):
+            assert goals[2][k].x - goals[1][k].x == pytest.approx(2.0, abs=1.0)
+            assert goals[3][k].x - goals[1][k].x == pytest.approx(4.0, abs=1.0)
+    else:
+        # Scratch: a fresh partition of each moved circle (mean shift about 2 m a step).
+        xs = [np.mean([g.x for g in goals[v]]) for v in (1, 2, 3)]
+        assert xs[2] - xs[0] > 2.0
+
+
+def test_morph_and_sequence_file_together_are_refused(tmp_path):
+    sequence = tmp_path / 'seq.yaml'
+    sequence.write_text('sequence: [{time: 0, shape: circle_314}]\n')
+    with ros_context() as (context, _):
+        with pytest.raises(ShapeError, match='sequence_file or morph, not both'):
+            MissionNode(context=context, parameter_overrides=_params(
+                morph='move:4@0.5+1', sequence_file=str(sequence)))
