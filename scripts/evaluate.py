@@ -5,7 +5,9 @@ Runs T trials of the scenario with random initial positions in the +/-50 m works
 with the same brains, radio medium, partitioners and sensor models as the ROS system
 (``swarm_sim.headless``), and writes into --out:
 
-  metrics.json      {"trials": [{...}, ...], "mean": {...}, "scenario": {...}}
+  metrics.json      {"trials": [{...}, ...], "mean": {...}, "scenario": {...}}; with
+                    --sequence or --morph also coverage_lags and dispersion_during_change
+                    (swarm_sim.metrics.change_metrics)
   table.md          a table like thesis Tables 4.5-4.9
   boxplots.png      total displacement, settling time, epsilon_t, epsilon_g (Figs. 4.17-4.34)
   trajectories.png  the first trial's true trajectories, shape and final goals

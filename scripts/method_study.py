@@ -15,9 +15,9 @@ dynamically in a smooth fashion"). Writes into --out:
                     dispersion through each smooth change (first seed)
   coverage_lag.json lag per switch and method (time until 95 % of the agents are inside)
 
-The response to a smooth change is the mean ``coverage_dispersion`` (mean distance
-from the shape in force to the nearest robot, 1 for an even hexagonal spread) from the
-first change until 20 s after the last.
+The response to a smooth change is the trial's ``dispersion_during_change``: the mean
+``coverage_dispersion`` (mean distance from the shape in force to the nearest robot, 1
+for an even hexagonal spread) from the first change until 20 s after the last.
 
   scripts/env.sh python scripts/method_study.py --agents 50 --trials 4 --workers 2 \\
       --out results/method_study
@@ -38,14 +38,13 @@ from swarm_mission.robot_types import default_type_counts
 from swarm_mission.shapes import load_shape, ShapeError
 from swarm_sim import plots
 from swarm_sim.headless import HeadlessSwarm, Scenario
-from swarm_sim.metrics import coverage_dispersion, inside_mask
+from swarm_sim.metrics import CHANGE_WINDOW_S, shape_response
 from swarm_sim.report import summarize
 
 METHODS = ('bubble', 'fractal', 'forces')
 # Dynamic formations: (label, method, remesh).
 DYNAMIC = (('bubble', 'bubble', 'incremental'), ('bubble, scratch', 'bubble', 'scratch'),
            ('forces', 'forces', 'incremental'))
-SETTLE_AFTER_S = 20.0   # the smooth-change window ends this long after the last change
 TABLE_KEYS = (('total_displacement', 'Total displacement [m]', 0, 'min'),
               ('settling_time', 'Settling time [s]', 0, 'min'),
               ('epsilon_t', 'eps_t', 2, 'min'), ('epsilon_g', 'eps_g', 2, 'min'))
@@ -58,8 +57,8 @@ def _trial(method: str, shape_name: str, agents: int, beacons: int, seed: int,
     steps = [SequenceStep(t, load_shape(name)) for t, name in sequence]
     if morph:
         steps = parse_morph(morph, shape)
-        # The response is judged up to SETTLE_AFTER_S after the last change.
-        duration = min(duration, steps[-1].time + 2 * SETTLE_AFTER_S)
+        # The response is judged up to CHANGE_WINDOW_S after the last change.
+        duration = min(duration, steps[-1].time + 2 * CHANGE_WINDOW_S)
     scenario = Scenario(shape=shape, method=method, type_counts=default_type_counts(agents),
                         n_beacons=beacons, seed=seed, duration_s=duration, sequence=steps,
                         remesh=remesh)
@@ -67,43 +66,16 @@ def _trial(method: str, shape_name: str, agents: int, beacons: int, seed: int,
     result = dict(record.metrics, method=label or method, seed=seed, morph=morph)
     if steps:
         result['coverage'] = response(record)
-        if morph:
-            result['dispersion_during'] = window_mean(result['coverage'], SETTLE_AFTER_S)
     return result
 
 
 def response(record) -> dict:
-    """Per recorded time, the share of living agents inside the shape in force and the
-    coverage dispersion of that shape; per switch, the lag until 95 % are inside."""
-    switch_times = [t for t, _ in record.shapes]
-    fractions, dispersion = [], []
-    for k, t in enumerate(record.times):
-        current = max(i for i, s in enumerate(switch_times) if s <= t + 1e-9)
-        shape = record.shapes[current][1]
-        alive = record.positions[k][record.alive[k]]
-        inside = inside_mask(shape, alive)
-        fractions.append(float(np.mean(inside)) if len(inside) else 0.0)
-        dispersion.append(coverage_dispersion(shape, alive))
-    fractions = np.array(fractions)
-    lags = []
-    for i, start in enumerate(switch_times[1:], start=1):
-        end = switch_times[i + 1] if i + 1 < len(switch_times) else record.times[-1] + 1
-        window = (record.times >= start) & (record.times < end)
-        ok = np.flatnonzero(window & (fractions >= 0.95))
-        lags.append(float(record.times[ok[0]] - start) if len(ok) else None)
-    return {'times': record.times.tolist(), 'fraction_inside': fractions.tolist(),
-            'dispersion': dispersion, 'switch_times': switch_times, 'lags': lags}
-
-
-def window_mean(coverage: dict, after_s: float) -> float:
-    """Mean coverage dispersion from the first shape change until ``after_s`` after the
-    last (the recorded times are evenly spaced, so this is the time average)."""
-    times = np.asarray(coverage['times'])
-    changes = coverage['switch_times'][1:]
-    if not changes:
-        raise ValueError('no shape change in this run')
-    window = (times >= changes[0]) & (times <= changes[-1] + after_s)
-    return float(np.mean(np.asarray(coverage['dispersion'])[window]))
+    """The whole run's share of agents inside the shape in force and its coverage
+    dispersion, for the plots (the metrics come from the trial's own record)."""
+    curves = shape_response(record.times, record.positions, record.alive, record.shapes)
+    return {'times': record.times.tolist(), 'fraction_inside': curves['inside'].tolist(),
+            'dispersion': curves['dispersion'].tolist(),
+            'switch_times': [t for t, _ in record.shapes]}
 
 
 def _badness(mean: dict, key: str) -> tuple[float, float]:
@@ -122,7 +94,7 @@ def dynamic_table(dispersion: dict[str, dict[str, list[float]]]) -> list[str]:
         return []
     labels = [label for label, _, _ in DYNAMIC]
     lines = ['', 'Coverage dispersion through each smooth shape change (mean from the first '
-             f'change to {SETTLE_AFTER_S:.0f} s after the last; 1 is an even spread; lower '
+             f'change to {CHANGE_WINDOW_S:.0f} s after the last; 1 is an even spread; lower '
              'adapts better):', '', '| Shape change | ' + ' | '.join(labels) + ' |',
              '|---' * (len(labels) + 1) + '|']
     for spec, by_label in dispersion.items():
@@ -199,10 +171,10 @@ def main(argv: list[str] | None = None) -> int:
         bound = means[m].get('displacement_lower_bound')
         bound_cell = 'n/a' if bound is None else f'{bound:.0f}'
         lines.append(f'| {m} | ' + ' | '.join(cells) + f' | {bound_cell} |')
-    lags = {r['method']: r['coverage']['lags'] for r in dynamic}
+    lags = {r['method']: r['coverage_lags'] for r in dynamic}
     lines += ['', 'Coverage lag after each shape switch (s until 95 % of agents inside): ' +
               ', '.join(f'{m}: {v}' for m, v in lags.items())]
-    dispersion = {spec: {label: [r['dispersion_during'] for r in morphs
+    dispersion = {spec: {label: [r['dispersion_during_change'] for r in morphs
                                  if r['morph'] == spec and r['method'] == label]
                          for label, _, _ in DYNAMIC} for spec in args.morphs}
     lines += dynamic_table(dispersion)

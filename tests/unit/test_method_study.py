@@ -26,14 +26,6 @@ def test_other_metrics_mark_the_largest_mean():
     assert _worst(means, 'epsilon_t') == 'fractal'
 
 
-def test_smooth_change_response_is_averaged_from_the_first_change_to_after_the_last():
-    coverage = {'times': [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0],
-                'dispersion': [1.0, 1.0, 3.0, 5.0, 2.0, 1.0, 9.0],
-                'switch_times': [0.0, 2.0, 3.0]}
-    # Window [2, 3 + 2]: 3, 5, 2, 1.
-    assert method_study.window_mean(coverage, 2.0) == 2.75
-
-
 def test_dynamic_table_marks_the_variant_that_adapts_best():
     table = method_study.dynamic_table({
         'move:15@200+60': {'bubble': [1.1, 1.3], 'bubble, scratch': [2.0], 'forces': [1.9]},

@@ -28,7 +28,13 @@ from swarm_mission.robot_types import load_robot_types
 from swarm_mission.shapes import Shape
 from swarm_sim.fleet import random_fleet, RobotSpec
 from swarm_sim.medium import MediumConfig, RadioMedium
-from swarm_sim.metrics import belief_metrics, inside_mask, run_metrics, SETTLE_SPEED
+from swarm_sim.metrics import (
+    belief_metrics,
+    change_metrics,
+    inside_mask,
+    run_metrics,
+    SETTLE_SPEED,
+)
 from swarm_sim.sensors import GpsModel, ImuModel, ProximityModel
 
 METHODS = ('bubble', 'fractal', 'forces')
@@ -290,6 +296,8 @@ class HeadlessSwarm:
         metrics = run_metrics(arrays['times'], arrays['positions'], arrays['velocities'],
                               self.robot_types, shape, radii, alive=arrays['alive'])
         metrics.update(belief_metrics(arrays, self.robot_types, self.is_beacon))
+        metrics.update(change_metrics(arrays['times'], arrays['positions'], arrays['alive'],
+                                      self.shapes))
         metrics['wall_seconds'] = wall_s
         metrics['real_time_factor'] = float(arrays['times'][-1] / max(wall_s, 1e-9))
         metrics['medium'] = dict(vars(self.medium.stats)) if hasattr(

@@ -15,7 +15,10 @@ Shared by the headless evaluator and the ROS launcher, so both report the same k
 - ``min_separation_ratio``: the smallest distance between two robots divided by the sum
   of their coverage radii over the run (below 1 means coverage circles overlapped).
 - ``coverage_dispersion`` (for dynamic formations, 4.3.4): how well robots cover the
-  shape in force at one instant, relative to an even spread.
+  shape in force at one instant, relative to an even spread. With shape changes,
+  ``change_metrics`` adds ``coverage_lags`` (seconds after each change until 95 % of
+  the robots are inside the new shape) and ``dispersion_during_change`` (the mean
+  dispersion from the first change until ``CHANGE_WINDOW_S`` after the last).
 """
 
 from __future__ import annotations
@@ -34,6 +37,8 @@ from swarm_mission.mesh_quality import epsilon_g, epsilon_t
 from swarm_mission.shapes import Shape
 
 SETTLE_SPEED = 0.01  # m/s, eq. 4.1
+CHANGE_WINDOW_S = 20.0  # dispersion_during_change runs until this long after the last change
+LAG_INSIDE = 0.95       # coverage_lags: share of the robots inside the new shape
 
 
 def path_lengths(positions: np.ndarray) -> np.ndarray:
@@ -109,6 +114,45 @@ def coverage_dispersion(shape: Shape, points: np.ndarray, samples: int = 10_000)
         return math.inf
     distance, _ = cKDTree(points).query(grid)
     return float(distance.mean() / (HEXAGON_MEAN_DISTANCE * math.sqrt(region.area / len(points))))
+
+
+def shape_response(times: np.ndarray, positions: np.ndarray, alive: np.ndarray,
+                   shapes: Sequence[tuple[float, Shape]], start: float = -math.inf,
+                   end: float = math.inf) -> dict[str, np.ndarray]:
+    """Per recorded time, the share of living robots inside the shape in force
+    (``inside``) and, for times in [start, end], its ``coverage_dispersion``
+    (``dispersion``, NaN elsewhere: it costs a grid query per time). ``shapes`` are
+    (time applied, Shape) in order; positions (T, N, 2), alive (T, N)."""
+    switch_times = np.array([t for t, _ in shapes])
+    inside = np.zeros(len(times))
+    dispersion = np.full(len(times), np.nan)
+    for k, t in enumerate(times):
+        shape = shapes[max(0, int(np.searchsorted(switch_times, t + 1e-9)) - 1)][1]
+        living = positions[k][alive[k]]
+        inside[k] = float(inside_mask(shape, living).mean()) if len(living) else 0.0
+        if start <= t <= end:
+            dispersion[k] = coverage_dispersion(shape, living)
+    return {'inside': inside, 'dispersion': dispersion}
+
+
+def change_metrics(times: np.ndarray, positions: np.ndarray, alive: np.ndarray,
+                   shapes: Sequence[tuple[float, Shape]]) -> dict[str, object]:
+    """``coverage_lags`` and ``dispersion_during_change`` (module docstring) of a run
+    whose shape changed; an empty dict if it never did."""
+    switch_times = [t for t, _ in shapes]
+    if len(switch_times) < 2:
+        return {}
+    first, last = switch_times[1], switch_times[-1] + CHANGE_WINDOW_S
+    response = shape_response(times, positions, alive, shapes, start=first, end=last)
+    lags: list[float | None] = []
+    for i, begin in enumerate(switch_times[1:], start=1):
+        until = switch_times[i + 1] if i + 1 < len(switch_times) else math.inf
+        ok = np.flatnonzero((times >= begin) & (times < until)
+                            & (response['inside'] >= LAG_INSIDE))
+        lags.append(float(times[ok[0]] - begin) if len(ok) else None)
+    window = response['dispersion'][(times >= first) & (times <= last)]
+    return {'coverage_lags': lags,
+            'dispersion_during_change': float(np.mean(window)) if len(window) else None}
 
 
 def displacement_lower_bound(initial: np.ndarray, final: np.ndarray, types: np.ndarray,
