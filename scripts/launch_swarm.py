@@ -792,7 +792,8 @@ def main(argv: list[str] | None = None) -> int:
     sim_settings = applied_settings + unapplied
     shapes = [s for _, s in monitor_shapes] or [shape]
     metrics = run_report(out, monitor_record, [r.type for r in robots],
-                         [r.is_beacon for r in robots], shapes, monitor_goals, extra={
+                         [r.is_beacon for r in robots], shapes, monitor_goals,
+                         shape_times=[t for t, _ in monitor_shapes] or None, extra={
                              'mode': mode, 'outcome': outcome, 'wall_seconds': wall,
                              'cpu_seconds_children': cpu,
                              'cpu_cores_used': cpu / wall if wall > 0 else 0.0,
