@@ -73,8 +73,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         help='maximum simulated seconds per trial')
     parser.add_argument('--sequence', default='', help='YAML/JSON shape sequence file')
     parser.add_argument('--morph', default='', metavar='KIND:AMOUNT@START+DURATION',
-                        help='a smooth shape change (move metres along x, rotate degrees, '
-                             'grow by 1+AMOUNT), e.g. move:15@150+60; not with --sequence')
+                        help='a smooth shape change (move metres along x or by DX,DY, rotate '
+                             'degrees, grow by 1+AMOUNT), e.g. move:15@150+60; not with '
+                             '--sequence')
     parser.add_argument('--remesh', choices=REMESH, default='incremental',
                         help='bubble packing on a changed shape: goals move keeping their '
                              'ids (incremental) or are partitioned anew and re-assigned')

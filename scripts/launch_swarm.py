@@ -72,8 +72,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument('--shape', default='circle_314', help='built-in name or shape file')
     p.add_argument('--sequence', default='', help='YAML/JSON shape sequence [{time, shape}]')
     p.add_argument('--morph', default='', metavar='KIND:AMOUNT@START+DURATION',
-                   help='smooth change of --shape (move m along x, rotate degrees, grow by '
-                        '1+AMOUNT), e.g. move:15@200+60; not with --sequence')
+                   help='smooth change of --shape (move m along x or by DX,DY, rotate '
+                        'degrees, grow by 1+AMOUNT), e.g. move:15@200+60; not with '
+                        '--sequence')
     p.add_argument('--remesh', choices=('incremental', 'scratch'), default='incremental',
                    help='bubble packing on a changed shape: move the goals (incremental) or '
                         'partition anew and re-assign (scratch)')

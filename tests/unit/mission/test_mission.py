@@ -100,10 +100,18 @@ def test_smooth_changes_leave_workspace_obstacles_in_place():
 @pytest.mark.parametrize(('spec', 'says'), [
     ('spin:3@0+10', 'unknown shape change'), ('move:3@10', 'write KIND:AMOUNT@START'),
     ('grow:-1@0+10', 'above -1'), ('move:3@0+0', 'duration > 0'),
-    ('move:nan@0+10', 'finite'), ('move:3@0+10/0', 'steps >= 1')])
+    ('move:nan@0+10', 'finite'), ('move:3@0+10/0', 'steps >= 1'),
+    ('move:1,2,3@0+10', 'one or two finite numbers'), ('rotate:1,2@0+10', 'degrees')])
 def test_bad_shape_changes_are_rejected_with_the_reason(spec, says):
     with pytest.raises(ShapeError, match=says):
         parse_morph(spec, load_shape('circle_314'))
+
+
+def test_a_move_may_go_in_any_direction():
+    base = load_shape('circle_314')
+    steps = parse_morph('move:6,-8@0+4', base)
+    assert steps[-1].shape.centroid == pytest.approx(base.centroid + [6.0, -8.0])
+    assert steps[0].shape.centroid == pytest.approx(base.centroid + [3.0, -4.0])
 
 
 def test_a_shape_change_spec_defaults_to_one_shape_per_consensus_period():

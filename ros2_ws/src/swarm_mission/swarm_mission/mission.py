@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import json
 import logging
 import math
+from numbers import Real
 import pathlib
 
 import yaml
@@ -82,15 +83,16 @@ def load_sequence(path: str | pathlib.Path, *, scale: float = 1.0) -> list[Seque
     return steps
 
 
-def morph_sequence(shape: Shape, kind: str, amount: float, *, start: float,
-                   duration: float, steps: int) -> list[SequenceStep]:
+def morph_sequence(shape: Shape, kind: str, amount: float | Sequence[float], *,
+                   start: float, duration: float, steps: int) -> list[SequenceStep]:
     """A shape changing smoothly (4.3.4: "changed dynamically in a smooth fashion").
 
     ``steps`` shapes evenly spaced over ``duration`` seconds from ``start``; step k of n
     is the fraction k/n of the change: ``move`` translates the region by ``amount``
-    metres along x, ``rotate`` turns it by ``amount`` degrees about its area centroid,
-    ``grow`` scales it by ``1 + amount`` about that centroid. Workspace obstacles stay
-    where they are. Raises ShapeError naming the bad argument.
+    metres along x, or by the vector (dx, dy) when ``amount`` is a pair, ``rotate`` turns
+    it by ``amount`` degrees about its area centroid, ``grow`` scales it by
+    ``1 + amount`` about that centroid. Workspace obstacles stay where they are. Raises
+    ShapeError naming the bad argument.
     """
     from shapely import affinity
 
@@ -101,20 +103,26 @@ def morph_sequence(shape: Shape, kind: str, amount: float, *, start: float,
     if not (math.isfinite(start) and math.isfinite(duration) and duration > 0):
         raise ShapeError(f'a shape change needs a finite start and a duration > 0 s, got '
                          f'start {start!r}, duration {duration!r}')
-    if not math.isfinite(amount) or (kind == 'grow' and amount <= -1.0):
-        raise ShapeError(f'{kind} amount must be finite' +
-                         (' and above -1 (a scale of 1 + amount)' if kind == 'grow' else '') +
-                         f', got {amount!r}')
+    values = (amount,) if isinstance(amount, Real) else tuple(amount)
+    if kind == 'move' and len(values) == 1:
+        values = (values[0], 0.0)
+    if (len(values) != (2 if kind == 'move' else 1)
+            or not all(math.isfinite(v) for v in values)
+            or (kind == 'grow' and values[0] <= -1.0)):
+        what = {'move': 'one or two finite numbers (m along x, or dx,dy)',
+                'rotate': 'a finite number of degrees',
+                'grow': 'a finite number above -1 (a scale of 1 + amount)'}[kind]
+        raise ShapeError(f'{kind} amount must be {what}, got {amount!r}')
     about = tuple(shape.centroid)
     sequence = []
     for k in range(1, steps + 1):
         f = k / steps
         if kind == 'move':
-            region = affinity.translate(shape.region, amount * f, 0.0)
+            region = affinity.translate(shape.region, values[0] * f, values[1] * f)
         elif kind == 'rotate':
-            region = affinity.rotate(shape.region, amount * f, origin=about)
+            region = affinity.rotate(shape.region, values[0] * f, origin=about)
         else:
-            scale = 1.0 + amount * f
+            scale = 1.0 + values[0] * f
             region = affinity.scale(shape.region, scale, scale, origin=about)
         sequence.append(SequenceStep(start + duration * (k - 1) / steps,
                                      Shape(shape.name, region, shape.obstacles)))
@@ -123,8 +131,9 @@ def morph_sequence(shape: Shape, kind: str, amount: float, *, start: float,
 
 def parse_morph(spec: str, shape: Shape) -> list[SequenceStep]:
     """``morph_sequence`` from ``KIND:AMOUNT@START+DURATION[/STEPS]`` (e.g.
-    ``move:15@150+60``: 15 m along x from 150 s over 60 s). STEPS defaults to one shape
-    every 2 s, the consensus period. Raises ShapeError naming the spec."""
+    ``move:15@150+60``: 15 m along x from 150 s over 60 s; ``move:10,-5@...`` moves by
+    (10, -5) m). STEPS defaults to one shape every 2 s, the consensus period. Raises
+    ShapeError naming the spec."""
     try:
         kind, rest = spec.split(':', 1)
         amount, rest = rest.split('@', 1)
@@ -132,8 +141,8 @@ def parse_morph(spec: str, shape: Shape) -> list[SequenceStep]:
         duration, _, steps = rest.partition('/')
         start_s, duration_s = float(start), float(duration)
         n = int(steps) if steps else max(1, round(duration_s / 2.0))
-        return morph_sequence(shape, kind, float(amount), start=start_s,
-                              duration=duration_s, steps=n)
+        return morph_sequence(shape, kind, [float(a) for a in amount.split(',')],
+                              start=start_s, duration=duration_s, steps=n)
     except ValueError as exc:
         if isinstance(exc, ShapeError):
             raise ShapeError(f'shape change {spec!r}: {exc}') from None

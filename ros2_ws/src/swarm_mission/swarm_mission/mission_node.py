@@ -39,8 +39,8 @@ PARAMETERS = {
     'shape_scale': (1.0, 'Scale applied to SVG/PNG shapes'),
     'sequence_file': ('', 'Optional YAML/JSON shape sequence [{time, shape}, ...]'),
     'morph': ('', 'Optional smooth change of the shape, KIND:AMOUNT@START+DURATION[/STEPS]: '
-                  'move (m along x), rotate (degrees) or grow (by 1 + AMOUNT), e.g. '
-                  'move:15@200+60; not with sequence_file'),
+                  'move (m along x, or DX,DY), rotate (degrees) or grow (by 1 + '
+                  'AMOUNT), e.g. move:15@200+60; not with sequence_file'),
     'method': ('bubble', 'Partition method: bubble, fractal or forces (no partition)'),
     'fleet_file': ('', 'Fleet YAML (robots: id, type, ...): the swarm composition'),
     'type_counts': ('1:20,2:20,3:10', 'Composition when no fleet file: ids 0.. in type order'),
