@@ -128,4 +128,3 @@ def formation_force(position, velocity, inside: bool, boundary_samples, neighbou
         near = gap < 3.0
         force += params.k_o * (off[near] / gap[near, None] ** 4).sum(axis=0) * step  # eq. 3.93
     return force
-
