@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import concurrent.futures as futures
 import json
+import math
 import pathlib
 import sys
 
@@ -52,7 +53,8 @@ TABLE_KEYS = (('total_displacement', 'Total displacement [m]', 0, 'min'),
 
 def _trial(method: str, shape_name: str, agents: int, beacons: int, seed: int,
            duration: float, sequence: tuple[tuple[float, str], ...] = (),
-           morph: str = '', remesh: str = 'incremental', label: str = '') -> dict:
+           morph: str = '', remesh: str = 'incremental', label: str = '',
+           dispersion_curve: bool = False) -> dict:
     shape = load_shape(shape_name)
     steps = [SequenceStep(t, load_shape(name)) for t, name in sequence]
     if morph:
@@ -65,14 +67,17 @@ def _trial(method: str, shape_name: str, agents: int, beacons: int, seed: int,
     record = HeadlessSwarm(scenario).run()
     result = dict(record.metrics, method=label or method, seed=seed, morph=morph)
     if steps:
-        result['coverage'] = response(record)
+        result['coverage'] = response(record, dispersion_curve)
     return result
 
 
-def response(record) -> dict:
-    """The whole run's share of agents inside the shape in force and its coverage
-    dispersion, for the plots (the metrics come from the trial's own record)."""
-    curves = shape_response(record.times, record.positions, record.alive, record.shapes)
+def response(record, dispersion_curve: bool) -> dict:
+    """The whole run's share of agents inside the shape in force and, if
+    ``dispersion_curve``, its coverage dispersion (NaN otherwise: a grid query per
+    recorded time, about 2 s a trial), for the plots; the metrics come from the trial's
+    own record."""
+    curves = shape_response(record.times, record.positions, record.alive, record.shapes,
+                            start=-math.inf if dispersion_curve else math.inf)
     return {'times': record.times.tolist(), 'fraction_inside': curves['inside'].tolist(),
             'dispersion': curves['dispersion'].tolist(),
             'switch_times': [t for t, _ in record.shapes]}
@@ -141,8 +146,9 @@ def main(argv: list[str] | None = None) -> int:
             for m in METHODS for k in range(args.trials)]
     jobs += [(m, sequence[0][1], args.agents, args.beacons, args.seed, args.duration,
               sequence[1:], '', remesh, label) for label, m, remesh in DYNAMIC]
+    # Only the first seed's dispersion is plotted.
     jobs += [(m, args.shape, args.agents, args.beacons, args.seed + k, args.duration, (),
-              spec, remesh, label)
+              spec, remesh, label, k == 0)
              for spec in args.morphs for label, m, remesh in DYNAMIC
              for k in range(args.trials)]
     results: list[dict] = []
