@@ -1,19 +1,18 @@
 """DSDV routing (thesis 3.1.2): the thesis's own examples, properties and the data plane.
 
-The routers run in a tiny deterministic network loop: at each time ``t`` every living
-router ticks, then its frames are handed to the routers on the adjacency set (every
-neighbour for a broadcast, the addressee for a unicast), and whatever a receiver sends
-in reply is delivered the same way within the same instant. An *iteration* of the
-thesis (Figs. 3.5-3.9) is one such instant with ``ITERATION``: heartbeat and full dump
-every second, so information travels exactly one hop per iteration.
+The routers run in the deterministic network loop of ``swarm_agent.sim_net`` (shared
+with benchmarks/bench_dsdv.py): at each time ``t`` every living router ticks, then its
+frames are handed to the routers on the adjacency set (every neighbour for a
+broadcast, the addressee for a unicast), and whatever a receiver sends in reply is
+delivered the same way within the same instant. An *iteration* of the thesis (Figs.
+3.5-3.9) is one such instant with ``ITERATION``: heartbeat and full dump every second,
+so information travels exactly one hop per iteration.
 
 The figure images are not in the thesis text; the graphs below follow their
 descriptions (names A, B, ... mapped to ids 1, 2, ...).
 """
 
 from __future__ import annotations
-
-from collections.abc import Iterable
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -22,75 +21,15 @@ import pytest
 from scipy.sparse.csgraph import shortest_path
 
 from swarm_agent import wire
-from swarm_agent.dsdv import Delivered, DsdvConfig, DsdvRouter
-from swarm_agent.packet import BROADCAST, Kind, MAX_PAYLOAD, Packet
+from swarm_agent.dsdv import Delivered, DsdvConfig
+from swarm_agent.packet import Kind, MAX_PAYLOAD
+from swarm_agent.sim_net import SimulatedNet as Net
 from swarm_agent.wire import INFINITE_HOPS
 
 A, B, C, D, E, F, G = range(1, 8)
 ITERATION = DsdvConfig(heartbeat_period_s=1.0, full_dump_period_s=1.0,
                        neighbour_timeout_s=2.0, incremental_min_interval_s=1.0)
 PROPERTY = settings(max_examples=25, deadline=None)
-
-
-class Net:
-    """Routers joined by an adjacency set; synchronous rounds, optional seeded loss."""
-
-    def __init__(self, ids: Iterable[int], edges: Iterable[tuple[int, int]],
-                 config: DsdvConfig | None = None, loss: float = 0.0,
-                 rng: np.random.Generator | None = None) -> None:
-        self.routers = {i: DsdvRouter(i, config or DsdvConfig()) for i in ids}
-        self.adj: dict[int, set[int]] = {i: set() for i in self.routers}
-        for a, b in edges:
-            self.link(a, b)
-        self.alive = set(self.routers)
-        self.loss = loss
-        self.rng = rng or np.random.default_rng(0)
-        self.delivered: dict[int, list[Delivered]] = {i: [] for i in self.routers}
-        self.frames = 0
-        self.bytes = 0
-
-    def link(self, a: int, b: int) -> None:
-        self.adj[a].add(b)
-        self.adj[b].add(a)
-
-    def unlink(self, a: int, b: int) -> None:
-        self.adj[a].discard(b)
-        self.adj[b].discard(a)
-
-    def kill(self, a: int) -> None:
-        """The agent vanishes (Fig. 3.6): it neither sends nor hears anything."""
-        self.alive.discard(a)
-
-    def transmit(self, t: float, sender: int, packets: list[Packet]) -> None:
-        """Deliver frames (and everything they cause) within the instant ``t``."""
-        queue = [(sender, p) for p in packets]
-        while queue:
-            src, packet = queue.pop(0)
-            assert len(packet.payload) <= MAX_PAYLOAD
-            assert packet.source == src
-            self.frames += 1
-            self.bytes += len(packet.payload)
-            if packet.destination == BROADCAST:
-                receivers = sorted(self.adj[src])
-            else:
-                receivers = [packet.destination] if packet.destination in self.adj[src] else []
-            for r in receivers:
-                if r not in self.alive or (self.loss and self.rng.random() < self.loss):
-                    continue
-                out = self.routers[r].on_packet(t, packet)
-                self.delivered[r].extend(out.delivered)
-                queue.extend((r, p) for p in out.packets)
-
-    def step(self, t: float) -> None:
-        """Every living router ticks at ``t``, then all its frames go out."""
-        outs = {i: self.routers[i].tick(t) for i in sorted(self.alive)}
-        for i, packets in outs.items():
-            self.transmit(t, i, packets)
-
-    def table(self, node: int) -> dict[int, tuple[int, int, int]]:
-        """destination -> (next hop, hops, sequence number)."""
-        return {r.destination: (r.next_hop, r.hop_count, r.sequence_number)
-                for r in self.routers[node].routes()}
 
 
 def _bfs(ids: list[int], adj: dict[int, set[int]]) -> np.ndarray:
