@@ -28,6 +28,7 @@ import pathlib
 
 import yaml
 
+from swarm_mission.coverability import check_coverable
 from swarm_mission.goals import Goal
 from swarm_mission.partition import partition, PartitionResult
 from swarm_mission.shapes import load_shape, Shape, ShapeError
@@ -202,7 +203,13 @@ class Mission:
         return counts
 
     def set_shape(self, shape: Shape) -> bool:
-        """Adopt a new shape version and partition it; False if partitioning failed."""
+        """Adopt a new shape version and partition it; False if partitioning failed.
+
+        A shape the living swarm cannot cover (too small for its coverage discs, walled
+        off by obstacles, a neck narrower than a robot) raises ShapeError naming the
+        reason and is not adopted (``coverability.check_coverable``).
+        """
+        check_coverable(shape, self.type_counts(), self.radii)
         self.shape = shape
         self.shape_version += 1
         return self.repartition(reason=f'shape {shape.name} (version {self.shape_version})')
