@@ -3,6 +3,8 @@
 - IMU: true acceleration + a per-robot constant bias drawn uniformly in a disc of
   radius ``bias_max`` (0.1 mg) + white noise of ``noise_std`` (0.01 m/s^2) per axis.
 - GPS (beacons only): true position + Gaussian noise of ``std`` (2 m) per axis.
+- Trilateration fix, thesis profile (``TrilaterationFixModel``, used by the localization
+  study): true position + Gaussian noise of ``std`` (2 m) per axis, as 4.2 simulates it.
 - Proximity (beyond the thesis): every robot within ``range_m`` (3 m) of another is
   seen by it as an offset (its centre minus the observer's, map frame) with Gaussian
   noise of ``noise_std`` (2 cm) per axis, plus its coverage radius. This is what a ring
@@ -51,6 +53,14 @@ class GpsModel:
     def measure(self, true_position) -> tuple[np.ndarray, float]:
         """(fix, std) for one robot."""
         return np.asarray(true_position, float) + self.rng.normal(0.0, self.std, 2), self.std
+
+
+class TrilaterationFixModel(GpsModel):
+    """The trilateration output as the thesis simulates it (3.1.4 eq. 3.32, 4.2): the
+    true position plus Gaussian noise of ``std`` (2 m) per axis, whenever the agent has
+    the three beacon neighbours a trilateration needs. The alternative, TOA ranges to
+    the beacons' broadcast estimates trilaterated by the agent, is what the simulator
+    and the ROS system run (``RadioMedium.toa_ranges``)."""
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,257 @@
+"""Localization error in the thesis scenario per localization period (thesis 4.2, Figs. 4.4-4.6).
+
+A trial is one headless run of the thesis scenario (``swarm_sim.headless``: 50 agents,
+8 of them position beacons that move to their goals like the others, random start in
+the +/-50 m workspace, the 25 m radio range with line of sight), so agents out of range
+of three beacons, LOST and RETURN_HOME all happen as they do in a real run. Only the
+fix that an agent's localization tick feeds its Kalman filter depends on the noise
+profile:
+
+- ``toa``: the system's own localization. The agent trilaterates TOA ranges (0.3 m
+  noise, ``RadioMedium.toa_ranges``) against the positions its beacon neighbours
+  broadcast, which are their GPS-fed estimates (``AgentBrain._localize``).
+- ``thesis``: the thesis's simulation (3.1.4 eq. 3.32, 4.2): whenever the agent has
+  the three beacon neighbours a trilateration needs, the fix is its true position plus
+  2 m of Gaussian noise per axis (``sensors.TrilaterationFixModel``), fused as a
+  position measurement of that covariance. Without them it misses the tick as in
+  ``toa`` (LOST, then RETURN_HOME after three misses, 3.1.3).
+
+A ``FixProbe`` wraps each non-beacon agent's ``Localizer.localize``: it supplies the
+thesis fix, records the time of the agent's first fix and its error just before every
+later tick (the peaks of Figs. 4.4-4.6, which come "at the iterations just before the
+localization process"). The error statistics are over the non-beacon agents at every
+2 Hz record sample (the thesis's propagation rate) from each agent's first fix on;
+the maximum also includes the pre-tick errors.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+import math
+
+import numpy as np
+
+from swarm_agent.localization import Localizer, Mode
+from swarm_mission.robot_types import default_type_counts
+from swarm_mission.shapes import load_shape
+from swarm_sim.headless import HeadlessSwarm, Scenario, TrialRecord
+from swarm_sim.sensors import TrilaterationFixModel
+
+NOISE_PROFILES = ('thesis', 'toa')
+THESIS_FIX_STD_M = 2.0                                 # thesis 4.2
+THESIS_BOUNDS = {3.0: 3.0, 5.0: 10.0, 8.0: 12.0}       # m: "below 3/10/12 m" (thesis 4.2)
+
+
+class StudyError(ValueError):
+    """A study setup that cannot run (unknown noise profile, bad period, ...)."""
+
+
+class FixProbe:
+    """Stands in for one agent's ``Localizer.localize``; see the module docstring.
+
+    ``truth`` returns the agent's true position now; ``fix_model`` is None for the
+    ``toa`` profile (the localizer's own trilateration runs unchanged).
+    """
+
+    def __init__(self, localizer: Localizer, truth: Callable[[], np.ndarray],
+                 fix_model: TrilaterationFixModel | None) -> None:
+        self.localizer = localizer
+        self.truth = truth
+        self.fix_model = fix_model
+        self._localize = localizer.localize
+        self.first_fix: float | None = None
+        self.pre_tick_errors: list[float] = []   # error just before each tick after the first fix
+        self.fixes = 0
+        self.misses = 0
+
+    def install(self) -> None:
+        """Route the brain's localization ticks through this probe."""
+        self.localizer.localize = self
+
+    def __call__(self, t: float, beacons: Sequence[tuple[np.ndarray, float, float]],
+                 displacement=(0.0, 0.0)) -> Mode:
+        loc = self.localizer
+        truth = np.asarray(self.truth(), dtype=float)
+        if self.first_fix is not None:
+            self.pre_tick_errors.append(float(np.hypot(*(loc.position - truth))))
+        if self.fix_model is None:
+            before = loc.stats['localizations']
+            mode = self._localize(t, beacons, displacement)
+            fixed = loc.stats['localizations'] > before
+        else:
+            usable = sum(1 for p, r, s in beacons if np.all(np.isfinite(p))
+                         and math.isfinite(r) and math.isfinite(s) and s > 0)
+            if usable >= loc.config.min_beacons:
+                fix, std = self.fix_model.measure(truth)
+                loc.gps_update(t, fix, std)     # a position measurement of covariance std^2 I
+                mode, fixed = loc.mode, True
+            else:                               # the localizer's own miss: LOST, RETURN_HOME
+                mode, fixed = self._localize(t, [], displacement), False
+        if fixed:
+            self.fixes += 1
+            if self.first_fix is None:
+                self.first_fix = t
+        else:
+            self.misses += 1
+        return mode
+
+
+@dataclass
+class TrialResult:
+    """One trial: the 2 Hz record, and per non-beacon agent its probe's findings."""
+
+    record: TrialRecord
+    agents: np.ndarray                   # (M,) indices of the non-beacon agents
+    first_fix: np.ndarray                # (M,) time of the first fix, inf when none
+    pre_tick_errors: list[np.ndarray]    # per agent
+    fixes: int
+    misses: int
+
+
+@dataclass
+class StudyConfig:
+    """The scenario of every trial: the thesis scenario of chapter 4 by default."""
+
+    agents: int = 50
+    beacons: int = 8
+    shape: str = 'circle_314'
+    method: str = 'bubble'
+    imu_period_s: float = 0.1            # sim_node's 10 Hz IMU
+    fix_std_m: float = THESIS_FIX_STD_M
+    half_size: float = 50.0
+    extra: dict = field(default_factory=dict)   # further Scenario fields
+
+    def validate(self, periods: Sequence[float], noise: str, seeds: int,
+                 duration: float) -> None:
+        if noise not in NOISE_PROFILES:
+            raise StudyError(f'unknown noise profile {noise!r}; use one of '
+                             f'{", ".join(NOISE_PROFILES)}')
+        if seeds <= 0 or duration <= 0 or self.imu_period_s <= 0 or not periods \
+                or min(periods) <= 0:
+            raise StudyError('--seeds, --duration, --imu-period and --periods must be positive')
+        if duration < max(periods):
+            raise StudyError(f'--duration {duration:g} s is shorter than the longest period '
+                             f'{max(periods):g} s; no localization would happen')
+        if not 3 <= self.beacons <= self.agents - 1:
+            raise StudyError(f'{self.beacons} beacons among {self.agents} agents: a '
+                             f'trilateration needs 3 beacons and the study at least one '
+                             f'other agent; use --beacons 3..{self.agents - 1}')
+        if not self.fix_std_m > 0:
+            raise StudyError(f'fix noise must be positive, got {self.fix_std_m} m')
+
+
+def run_trial(period: float, noise: str, seed: int, duration: float,
+              config: StudyConfig | None = None) -> TrialResult:
+    """One headless run of the scenario with localization period ``period``."""
+    config = config or StudyConfig()
+    scenario = Scenario(
+        shape=load_shape(config.shape), method=config.method,
+        type_counts=default_type_counts(config.agents), n_beacons=config.beacons,
+        seed=seed, duration_s=duration, imu_period_s=config.imu_period_s,
+        localization_period_s=period, half_size=config.half_size,
+        settle_hold_s=math.inf,          # run the whole duration: parked agents count too
+        **config.extra)
+    swarm = HeadlessSwarm(scenario)
+    fix_rng = np.random.default_rng([seed, 0x10C])
+    fix_model = (TrilaterationFixModel(fix_rng, std=config.fix_std_m)
+                 if noise == 'thesis' else None)
+    agents = np.flatnonzero(~swarm.is_beacon)
+    probes = []
+    for i in agents:
+        probe = FixProbe(swarm.brains[i].localizer,
+                         lambda i=i: swarm.dynamics.positions[i], fix_model)
+        probe.install()
+        probes.append(probe)
+    record = swarm.run()
+    return TrialResult(
+        record=record, agents=agents,
+        first_fix=np.array([np.inf if p.first_fix is None else p.first_fix for p in probes]),
+        pre_tick_errors=[np.array(p.pre_tick_errors) for p in probes],
+        fixes=sum(p.fixes for p in probes), misses=sum(p.misses for p in probes))
+
+
+def error_samples(trial: TrialResult) -> tuple[np.ndarray, np.ndarray]:
+    """(errors (T, M) of the non-beacon agents with NaN before their first fix or when
+    removed, pre-tick errors after the first fix (K,))."""
+    rec = trial.record
+    err = np.linalg.norm(rec.estimates[:, trial.agents] - rec.positions[:, trial.agents], axis=2)
+    valid = rec.alive[:, trial.agents] & (rec.times[:, None] >= trial.first_fix[None, :])
+    err = np.where(valid, err, np.nan)
+    pre = (np.concatenate(trial.pre_tick_errors) if trial.pre_tick_errors
+           else np.zeros(0))
+    return err, pre
+
+
+def summarize(trials: Sequence[TrialResult]) -> dict:
+    """Error and mode statistics over trials of one (period, noise profile)."""
+    samples, pre, lost, home, never = [], [], [], [], 0
+    for trial in trials:
+        err, p = error_samples(trial)
+        samples.append(err[np.isfinite(err)])
+        pre.append(p)
+        modes = trial.record.modes[:, trial.agents]
+        alive = trial.record.alive[:, trial.agents]
+        lost.append(np.sum((modes == Mode.LOST) & alive) / max(alive.sum(), 1))
+        home.append(np.sum((modes == Mode.RETURN_HOME) & alive) / max(alive.sum(), 1))
+        never += int(np.sum(~np.isfinite(trial.first_fix)))
+    err = np.concatenate(samples)
+    pre_all = np.concatenate(pre)
+    nan = float('nan')
+    fixes = sum(t.fixes for t in trials)
+    ticks = fixes + sum(t.misses for t in trials)
+    settling = [t.record.metrics.get('settling_time') for t in trials]
+    return {
+        'max_error': float(max(err.max(initial=0.0), pre_all.max(initial=0.0)))
+        if len(err) else nan,
+        'p95_error': float(np.percentile(err, 95)) if len(err) else nan,
+        'rms_error': float(np.sqrt(np.mean(err ** 2))) if len(err) else nan,
+        'mean_error': float(err.mean()) if len(err) else nan,
+        'max_pre_tick_error': float(pre_all.max()) if len(pre_all) else nan,
+        'lost_share': float(np.mean(lost)),
+        'return_home_share': float(np.mean(home)),
+        'lost_or_home_share': float(np.mean(lost) + np.mean(home)),
+        'fix_share': fixes / ticks if ticks else nan,
+        'agents_never_fixed': never,
+        'samples': int(len(err)),
+        'settling_time': [None if s is None or not np.isfinite(s) else float(s)
+                          for s in settling],
+    }
+
+
+def study(periods: Sequence[float], noise: str, seeds: int, duration: float,
+          config: StudyConfig | None = None,
+          progress: Callable[[str], None] | None = None) -> tuple[dict, dict]:
+    """Every (period, seed) trial: (summary, curves for plotting).
+
+    ``curves[period]`` is (times (T,), errors (T, seeds * M)) with NaN before each
+    agent's first fix.
+    """
+    config = config or StudyConfig()
+    config.validate(periods, noise, seeds, duration)
+    summary: dict = {
+        'noise': noise, 'seeds': seeds, 'duration_s': duration, 'agents': config.agents,
+        'beacons': config.beacons, 'shape': config.shape, 'method': config.method,
+        'imu_period_s': config.imu_period_s,
+        'fix_std_m': config.fix_std_m if noise == 'thesis' else None,
+        'thesis_max_error_m': {_key(p): b for p, b in THESIS_BOUNDS.items()},
+        'periods': {}}
+    curves = {}
+    for period in periods:
+        trials = [run_trial(period, noise, seed, duration, config) for seed in range(seeds)]
+        stats = summarize(trials)
+        summary['periods'][_key(period)] = stats
+        length = min(len(t.record.times) for t in trials)
+        curves[_key(period)] = (
+            trials[0].record.times[:length],
+            np.concatenate([error_samples(t)[0][:length] for t in trials], axis=1))
+        if progress is not None:
+            progress(f'period {period:g} s, {noise}: max error {stats["max_error"]:.2f} m, '
+                     f'p95 {stats["p95_error"]:.2f} m, RMS {stats["rms_error"]:.2f} m, '
+                     f'LOST/RETURN_HOME {100 * stats["lost_or_home_share"]:.1f} % of '
+                     f'agent-time ({seeds} seeds, {duration:g} s)')
+    return summary, curves
+
+
+def _key(period: float) -> str:
+    return f'{period:g}'
