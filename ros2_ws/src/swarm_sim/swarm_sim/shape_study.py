@@ -1,0 +1,283 @@
+"""The generalization study: the thesis scenario on procedural shapes nobody tuned for.
+
+Each trial runs one shape of ``swarm_mission.shape_gen`` with one method in the headless
+swarm (``swarm_sim.headless``: the thesis scenario of chapter 4 by default, 50 agents, 8
+beacons, types 20/20/10) and becomes one row: settled and held (eq. 4.1), settling over
+least settling time, displacement over its lower bound, eps_t, eps_g, minimum
+separation, contacts, maximum localization error and assignment agreement, all read
+from ``swarm_sim.metrics`` keys (a key a run does not report shows as ``-``). A shape
+the swarm cannot cover (``swarm_mission.coverability``) is a row with the reason; a
+trial that raises is a row with the error; none is dropped.
+
+A trial that did not settle carries a diagnosis (``diagnose``): every agent not settled
+at the end (mode, inside or not, speed, distance to its goal, its localization error,
+the beacons in radio range and line of sight of it and of its goal), how many final
+goals have fewer than three beacons in reach (no trilateration there, thesis 3.1.4),
+and when and where the worst localization error occurred.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+import math
+import traceback
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString
+
+from swarm_agent.localization import Mode
+from swarm_mission.coverability import coverability_problem
+from swarm_mission.robot_types import load_robot_types
+from swarm_mission.shapes import Shape, ShapeError
+from swarm_sim.headless import HeadlessSwarm, Scenario, TrialRecord
+from swarm_sim.medium import MediumConfig
+from swarm_sim.metrics import inside_mask, SETTLE_SPEED
+
+METHODS = ('bubble', 'fractal', 'forces')
+THESIS_TYPES = {1: 20, 2: 20, 3: 10}
+TRILATERATION_BEACONS = 3     # beacons a fix needs (thesis 3.1.4)
+# (header, metric key or a function of the row's metrics, digits)
+COLUMNS = (
+    ('settled (held)', 'settled', None),
+    ('settling / least', 'settling_ratio', 2),
+    ('displacement / bound', 'displacement_ratio', 3),
+    ('eps_t', 'epsilon_t', 2),
+    ('eps_g', 'epsilon_g', 3),
+    ('min separation', 'min_separation_ratio', 2),
+    ('contacts', 'contacts', None),
+    ('max loc. error [m]', 'max_localization_error', 2),
+    ('agreement', 'assignment_agreement', 3),
+)
+
+
+@dataclass(frozen=True)
+class StudyTrial:
+    """One shape, one method, one fleet seed."""
+
+    shape: Shape
+    kind: str
+    method: str
+    seed: int = 0
+    type_counts: Mapping[int, int] = field(default_factory=lambda: dict(THESIS_TYPES))
+    n_beacons: int = 8
+    duration_s: float = 600.0
+
+
+def _number(value) -> float | None:
+    if isinstance(value, (bool, np.bool_)) or value is None:
+        return None
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return None
+    return value if math.isfinite(value) else None
+
+
+def _ratio(metrics: Mapping, num: str, den: str) -> float | None:
+    a, b = _number(metrics.get(num)), _number(metrics.get(den))
+    return a / b if a is not None and b else None
+
+
+def row_metrics(metrics: Mapping) -> dict:
+    """The table's quantities from a trial's metrics (``None`` where not reported)."""
+    settling = _number(metrics.get('settling_ratio'))
+    if settling is None:
+        settling = _ratio(metrics, 'settling_time', 'least_settling_time')
+    settled = metrics.get('settled')
+    return {
+        'settled': None if settled is None else bool(settled),
+        'settling_ratio': settling,
+        'displacement_ratio': _ratio(metrics, 'total_displacement',
+                                     'displacement_lower_bound'),
+        **{key: _number(metrics.get(key)) for key in (
+            'epsilon_t', 'epsilon_g', 'max_localization_error', 'assignment_agreement')},
+        # inf: no two robots ever came within reach of each other
+        'min_separation_ratio': (math.inf if metrics.get('min_separation_ratio') == math.inf
+                                 else _number(metrics.get('min_separation_ratio'))),
+        'contacts': None if metrics.get('contacts') is None else int(metrics['contacts']),
+    }
+
+
+def _beacons_in_reach(point: np.ndarray, beacons: np.ndarray, range_m: float,
+                      blocked) -> int:
+    """Beacons within radio range and, with obstacles, line of sight of ``point``."""
+    near = beacons[np.linalg.norm(beacons - point, axis=1) <= range_m]
+    if blocked is None:
+        return len(near)
+    return sum(not blocked.intersects(LineString([point, b])) for b in near
+               if not np.allclose(b, point))
+
+
+def diagnose(record: TrialRecord, shape: Shape, range_m: float | None = None) -> dict:
+    """Why a run did not settle: see the module docstring. Agent k is fleet row k."""
+    range_m = MediumConfig().range_m if range_m is None else range_m
+    blocked = shapely.union_all(list(shape.obstacles)) if shape.obstacles else None
+    pos, vel, alive = record.positions, record.velocities, record.alive
+    est, modes, goal_ids = record.estimates, record.modes, record.goal_ids
+    beacons = np.asarray(record.beacons, dtype=bool)
+    types = np.asarray(record.types)
+    final_beacons = pos[-1][beacons & alive[-1]]
+    goals = {g.id: np.array([g.x, g.y]) for g in record.goals}
+    inside = inside_mask(shape, pos[-1])
+    speed = np.linalg.norm(vel[-1], axis=1)
+    err = np.linalg.norm(est - pos, axis=2)
+    unsettled = []
+    for i in np.flatnonzero(alive[-1] & ~(inside & (speed < SETTLE_SPEED))):
+        goal = goals.get(int(goal_ids[-1, i]))
+        mode_changes = int(np.count_nonzero(np.diff(modes[:, i][alive[:, i]])))
+        unsettled.append({
+            'agent': int(i), 'type': int(types[i]), 'beacon': bool(beacons[i]),
+            'mode': Mode(int(modes[-1, i])).name if modes[-1, i] >= 0 else 'none',
+            'mode_changes': mode_changes,
+            'inside': bool(inside[i]), 'speed': float(speed[i]),
+            'goal_distance': None if goal is None else float(np.linalg.norm(pos[-1, i] - goal)),
+            'localization_error': _number(err[-1, i]),
+            'beacons_in_reach': _beacons_in_reach(pos[-1, i], final_beacons, range_m, blocked),
+            'beacons_in_reach_of_goal': None if goal is None else _beacons_in_reach(
+                goal, final_beacons, range_m, blocked),
+        })
+    short = [g for g, xy in goals.items()
+             if _beacons_in_reach(xy, final_beacons, range_m, blocked) < TRILATERATION_BEACONS]
+    worst = None
+    masked = np.where(alive & ~beacons[None, :] & np.isfinite(err), err, -1.0)
+    localized = getattr(record, 'localized', None)
+    if localized is not None and np.shape(localized) == masked.shape:
+        masked = np.where(np.logical_or.accumulate(np.asarray(localized, bool), axis=0),
+                          masked, -1.0)
+    if masked.size and masked.max() >= 0:
+        k, i = np.unravel_index(int(np.argmax(masked)), masked.shape)
+        live_beacons = pos[k][beacons & alive[k]]
+        worst = {'agent': int(i), 'time': float(record.times[k]), 'error': float(masked[k, i]),
+                 'mode': Mode(int(modes[k, i])).name if modes[k, i] >= 0 else 'none',
+                 'beacons_in_reach': _beacons_in_reach(pos[k, i], live_beacons, range_m,
+                                                       blocked)}
+    return {'unsettled_agents': unsettled, 'goals_short_of_beacons': len(short),
+            'goals': len(goals), 'worst_localization': worst,
+            'fraction_settled_at_end': float(np.mean((inside & (speed < SETTLE_SPEED))[
+                alive[-1]])) if alive[-1].any() else 0.0}
+
+
+def _row(trial: StudyTrial, status: str, note: str = '', metrics: Mapping | None = None,
+         diagnosis: Mapping | None = None) -> dict:
+    return {'shape': trial.shape.name, 'kind': trial.kind, 'method': trial.method,
+            'seed': trial.seed, 'area': trial.shape.area, 'status': status, 'note': note,
+            **row_metrics(metrics or {}), 'metrics': dict(metrics or {}),
+            'diagnosis': dict(diagnosis or {})}
+
+
+def _note(diagnosis: Mapping, limit: int = 3) -> str:
+    """One line naming the agents that did not settle."""
+    agents = diagnosis.get('unsettled_agents') or []
+    parts = []
+    for a in agents[:limit]:
+        where = 'inside' if a['inside'] else 'outside'
+        goal = '' if a['goal_distance'] is None else f', {a["goal_distance"]:.1f} m from goal'
+        reach = a['beacons_in_reach_of_goal']
+        reach = '' if reach is None else f', {reach} beacons reach its goal'
+        parts.append(f'agent {a["agent"]} (type {a["type"]}, {a["mode"]}, {where}, '
+                     f'{a["speed"]:.2f} m/s{goal}{reach})')
+    more = f' and {len(agents) - limit} more' if len(agents) > limit else ''
+    short = diagnosis.get('goals_short_of_beacons')
+    tail = f'; {short} of {diagnosis.get("goals")} goals reach < 3 beacons' if short else ''
+    return f'{len(agents)} not settled at the end: ' + '; '.join(parts) + more + tail
+
+
+def run_trial(trial: StudyTrial) -> dict:
+    """One row: refused (with the reason), error (with the exception), or the metrics."""
+    radii = {t: r.coverage_radius for t, r in load_robot_types().items()}
+    problem = coverability_problem(trial.shape, trial.type_counts, radii)
+    if problem:
+        return _row(trial, 'refused', problem)
+    scenario = Scenario(shape=trial.shape, method=trial.method,
+                        type_counts=dict(trial.type_counts), n_beacons=trial.n_beacons,
+                        seed=trial.seed, duration_s=trial.duration_s)
+    try:
+        record = HeadlessSwarm(scenario).run()
+    except ShapeError as exc:
+        return _row(trial, 'refused', str(exc))
+    except Exception as exc:   # a failing trial is a row, never a lost shape
+        last = traceback.extract_tb(exc.__traceback__)[-1]
+        where = f'{last.filename.rsplit("/", 1)[-1]}:{last.lineno}'
+        return _row(trial, 'error', f'{type(exc).__name__}: {exc} ({where})')
+    metrics = record.metrics
+    diagnosis = diagnose(record, trial.shape)
+    settled = metrics.get('settled')
+    if settled is None:
+        settled = metrics.get('settling_time') is not None
+    status = 'settled' if settled else 'not settled'
+    return _row(trial, status, '' if settled else _note(diagnosis), metrics, diagnosis)
+
+
+def row_from_metrics(shape: Shape, kind: str, method: str, seed: int, status: str,
+                     metrics: Mapping, note: str = '') -> dict:
+    """A row from a run's metrics.json trial (the ROS launcher's runs)."""
+    return _row(StudyTrial(shape, kind, method, seed), status, note, metrics)
+
+
+def _cell(value, digits: int | None) -> str:
+    if value is None:
+        return '-'
+    if isinstance(value, bool):
+        return 'yes' if value else 'no'
+    if digits is None:
+        return str(int(value)) if isinstance(value, (int, float)) else str(value)
+    return f'{value:.{digits}f}'
+
+
+def markdown_table(rows: Sequence[Mapping]) -> str:
+    """One line per row: shape, method, status, the COLUMNS and the note."""
+    header = ['shape', 'method', 'status', *[c[0] for c in COLUMNS], 'note']
+    lines = ['| ' + ' | '.join(header) + ' |', '|' + '---|' * len(header)]
+    for row in rows:
+        cells = [row['shape'], row['method'], row['status'],
+                 *[_cell(row.get(key), digits) for _, key, digits in COLUMNS],
+                 str(row.get('note', '')).replace('|', '/')]
+        lines.append('| ' + ' | '.join(cells) + ' |')
+    return '\n'.join(lines) + '\n'
+
+
+def summary(rows: Sequence[Mapping]) -> dict:
+    """Per method: settled count, median and worst ratios, worst separation and errors."""
+    out: dict[str, dict] = {}
+    for method in dict.fromkeys(r['method'] for r in rows):
+        mine = [r for r in rows if r['method'] == method]
+
+        def values(key: str, mine=mine) -> list[float]:
+            return [r[key] for r in mine if r.get(key) is not None]
+
+        disp, settle = values('displacement_ratio'), values('settling_ratio')
+        sep, loc = values('min_separation_ratio'), values('max_localization_error')
+        out[method] = {
+            'trials': len(mine),
+            'settled': sum(r['status'] == 'settled' for r in mine),
+            'not_settled': [r['shape'] for r in mine if r['status'] == 'not settled'],
+            'refused': [r['shape'] for r in mine if r['status'] == 'refused'],
+            'errors': [r['shape'] for r in mine if r['status'] == 'error'],
+            'median_displacement_ratio': float(np.median(disp)) if disp else None,
+            'worst_displacement_ratio': max(disp) if disp else None,
+            'median_settling_ratio': float(np.median(settle)) if settle else None,
+            'min_separation_ratio': min(sep) if sep else None,
+            'contacts': sum(values('contacts')) if values('contacts') else None,
+            'worst_localization_error': max(loc) if loc else None,
+        }
+    return out
+
+
+def summary_table(summ: Mapping[str, Mapping]) -> str:
+    """The per-method summary as markdown."""
+    def f(v, d):
+        return '-' if v is None else f'{v:.{d}f}'
+
+    lines = ['| method | settled | median disp. / bound | worst disp. / bound | '
+             'median settling / least | min separation | contacts | worst loc. error [m] |',
+             '|---|---|---|---|---|---|---|---|']
+    for method, s in summ.items():
+        lines.append(f'| {method} | {s["settled"]} / {s["trials"]} | '
+                     f'{f(s["median_displacement_ratio"], 3)} | '
+                     f'{f(s["worst_displacement_ratio"], 3)} | '
+                     f'{f(s["median_settling_ratio"], 2)} | {f(s["min_separation_ratio"], 2)} | '
+                     f'{"-" if s["contacts"] is None else int(s["contacts"])} | '
+                     f'{f(s["worst_localization_error"], 2)} |')
+    return '\n'.join(lines) + '\n'
