@@ -11,7 +11,7 @@ import dataclasses
 
 import numpy as np
 
-from swarm_agent.brain import AgentBrain, BrainConfig
+from swarm_agent.brain import AgentBrain, BrainConfig, BrainConfigError
 from swarm_agent.localization import LocalizationConfig
 from swarm_agent.lqr import design_lqr
 from swarm_mission.robot_types import (
@@ -29,8 +29,15 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
                consensus_period_s: float = 2.0,
                localization_period_s: float | None = None,
                robot_types_file: str | None = None, external_pose: bool = False,
-               localization: LocalizationConfig | None = None) -> AgentBrain:
-    """An AgentBrain for one robot, with the LQR gains of its type (eqs. 3.108-3.111)."""
+               localization: LocalizationConfig | None = None,
+               initial_position_std: float | None = None) -> AgentBrain:
+    """An AgentBrain for one robot, with the LQR gains of its type (eqs. 3.108-3.111).
+
+    ``initial_position`` is the robot's deployment prior, the position it was configured
+    to stand at, and ``initial_position_std`` (m per axis) its stated uncertainty (the
+    placement error, ``swarm_sim.fleet.place_fleet``); None keeps the localization
+    config's. The estimate becomes the robot's own with its first GPS or trilateration fix.
+    """
     types = load_robot_types(robot_types_file)
     robot = robot_type(types, agent_type)
     design = load_lqr_design(robot_types_file)
@@ -38,6 +45,11 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
     loc = localization or LocalizationConfig()
     if localization_period_s is not None:
         loc = dataclasses.replace(loc, period_s=localization_period_s)
+    if initial_position_std is not None:
+        if not (np.isfinite(initial_position_std) and initial_position_std >= 0.0):
+            raise BrainConfigError(f'initial_position_std must be a finite number >= 0 m, got '
+                                   f'{initial_position_std}; use the placement error, e.g. 0.3')
+        loc = dataclasses.replace(loc, initial_position_std=float(initial_position_std))
     config = BrainConfig(
         agent_id=agent_id, agent_type=agent_type, is_beacon=is_beacon or external_pose,
         method=method, outer_period_s=outer_period_s,

@@ -77,6 +77,8 @@ PARAMETERS = {
     'method': ('bubble', 'Formation method: bubble, fractal or forces'),
     'initial_x': (0.0, 'Deployment position x in metres (initial estimate)'),
     'initial_y': (0.0, 'Deployment position y in metres (initial estimate)'),
+    'placement_std_m': (0.3, 'Standard deviation (m per axis) of the deployment position: '
+                             "the initial estimate's uncertainty until the first fix"),
     'seed': (0, "Seed of this agent's random generator"),
     'control_rate_hz': (50.0, 'Rate of the LQR inner loop and of cmd_force'),
     'keepalive_hz': (10.0, 'Rate at which an unchanged cmd_force is repeated'),
@@ -204,7 +206,7 @@ class AgentNode(Node):
             consensus_period_s=p['consensus_period_s'],
             localization_period_s=p['localization_period_s'],
             robot_types_file=p['robot_types_file'] or None,
-            external_pose=p['external_pose'])
+            external_pose=p['external_pose'], initial_position_std=p['placement_std_m'])
         self._type_counts = p['type_counts']
         self._last_setpoint: tuple[float, float] | None = None
         self._radio_lag_max = 0.0  # s: worst delay from the medium to this callback

@@ -26,7 +26,7 @@ from swarm_agent.dynamics import PointMassSwarm
 from swarm_mission.mission import Mission, MissionConfig, SequenceStep
 from swarm_mission.robot_types import load_robot_types
 from swarm_mission.shapes import Shape
-from swarm_sim.fleet import random_fleet, RobotSpec
+from swarm_sim.fleet import place_fleet, PLACEMENT_STD_M, random_fleet, RobotSpec
 from swarm_sim.medium import MediumConfig, RadioMedium
 from swarm_sim.metrics import (
     belief_metrics,
@@ -73,6 +73,9 @@ class Scenario:
     fleet: Sequence[RobotSpec] | None = None
     half_size: float = 50.0
     partition_seed: int | None = None
+    # Robots stand this far (m per axis, Gaussian) from their fleet positions; the brains
+    # start from the fleet positions with this uncertainty (swarm_sim.fleet.place_fleet).
+    placement_std_m: float = PLACEMENT_STD_M
     remesh: str = 'incremental'           # bubble packing on a changed shape (MissionConfig)
 
     def validate(self) -> None:
@@ -125,7 +128,12 @@ class HeadlessSwarm:
         self.index = {r.id: i for i, r in enumerate(fleet)}
         self.robot_types = np.array([r.type for r in fleet])
         self.is_beacon = np.array([r.is_beacon for r in fleet])
-        start = np.array([[r.x, r.y] for r in fleet], dtype=float)
+        # The world places each robot near its fleet position; the brains know only the
+        # fleet position and the placement error's standard deviation.
+        placed = place_fleet(fleet, scenario.placement_std_m, scenario.seed,
+                             radii=[self.types[r.type].coverage_radius for r in fleet],
+                             obstacles=obstacles, half_size=scenario.half_size)
+        start = np.array([[r.x, r.y] for r in placed], dtype=float)
         self.dynamics = PointMassSwarm([self.types[r.type] for r in fleet], start)
         self.medium = RadioMedium(scenario.medium, self.rng, obstacles)
         self.imu = ImuModel(self.n, self.rng)
@@ -136,7 +144,8 @@ class HeadlessSwarm:
             make_brain(agent_id=r.id, agent_type=r.type, is_beacon=r.is_beacon,
                        method=scenario.method, initial_position=(r.x, r.y),
                        seed=scenario.seed * 100_003 + r.id,
-                       localization_period_s=scenario.localization_period_s)
+                       localization_period_s=scenario.localization_period_s,
+                       initial_position_std=scenario.placement_std_m)
             for r in fleet]
         self.alive = np.ones(self.n, dtype=bool)
         self.mission = Mission(

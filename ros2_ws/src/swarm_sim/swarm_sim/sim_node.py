@@ -104,13 +104,16 @@ from swarm_msgs.msg import (
     SensorBatch,
     SwarmTruth,
 )
-from swarm_sim.fleet import FleetError, load_fleet
+from swarm_sim.fleet import FleetError, load_fleet, place_fleet, PLACEMENT_STD_M
 from swarm_sim.markers import swarm_markers
 from swarm_sim.medium import MediumConfig, RadioMedium, RUNTIME_SETTINGS, SweepingWall
 from swarm_sim.sensors import GpsModel, ImuModel, ProximityModel
 
 PARAMETERS = {
     'fleet_file': ('', 'Fleet YAML: robots with id, type, beacon, x, y, yaw'),
+    'placement_std_m': (PLACEMENT_STD_M, 'Robots spawn this far (m per axis, Gaussian, '
+                                         'seeded) from their fleet positions, the '
+                                         "agents' deployment prior"),
     'shape': ('', 'Shape spec whose obstacles populate the world (built-in or file)'),
     'backend': ('auto', 'Physics: pybullet, pointmass, or auto (pybullet if available)'),
     'physics_rate_hz': (100.0, 'Physics steps per simulated second'),
@@ -234,6 +237,11 @@ class SimNode(Node):
         self.types = types
         obstacles = list(load_shape(p['shape']).obstacles) if p['shape'] else []
         self.obstacles = obstacles
+        # Where the robots really stand: near the fleet file's positions, which are all
+        # the agents know (swarm_sim.fleet.place_fleet, the same draw as headless).
+        self.fleet = place_fleet(self.fleet, p['placement_std_m'], p['seed'],
+                                 radii=[types[r.type].coverage_radius for r in self.fleet],
+                                 obstacles=obstacles, half_size=p['half_size'])
         self.rng = np.random.default_rng(p['seed'])
         self.backend = make_backend(p['backend'], self.fleet, types, obstacles,
                                     p['half_size'], p['terrain'], p['seed'], p['gui'],
