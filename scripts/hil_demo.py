@@ -11,7 +11,9 @@ on the agents, consensus over the mesh; config/hw_agent.yaml) whose
 velocity setpoints (``cmd_vel``) go through the real ``bridge_node`` as XBee API frames
 over a pseudo-terminal to firmware twins (swarm_bridge.emulator: fixed-point mixer of
 eqs. 5.1-5.3, stepper timing, watchdog). The boards integrate their half-steps into
-poses, which ``hil_world_node`` publishes as the overhead camera (/agent_K/pose).
+poses, which ``hil_world_node`` publishes as the overhead camera (/agent_K/pose). The
+agents' mesh frames travel through the simulator's radio medium between those poses
+(``swarm_bridge.hil_mesh``: range, line of sight, loss, airtime, latency; ``--radio-loss``).
 
 Per shape the run starts when the mission node announces the shape (t = 0) and ends once
 every robot has stayed inside the shape and slower than 0.01 m/s (eq. 5.4) for
@@ -62,6 +64,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help='seconds the swarm must stay settled (eq. 5.4) to end a run')
     p.add_argument('--camera-noise', type=float, default=None,
                    help='camera position noise, m (default: config/hil.yaml)')
+    p.add_argument('--radio-loss', type=float, default=None,
+                   help="per-receiver frame loss of the agents' mesh, 0..1 "
+                        '(default: config/hil.yaml)')
     p.add_argument('--domain', type=int, default=None, help='first ROS_DOMAIN_ID (default: free)')
     p.add_argument('--no-plot', action='store_true', help='skip the PNG figures')
     args = p.parse_args(argv)
@@ -69,6 +74,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         p.error(f'--shape {args.shape!r}: use one of {", ".join(SHAPES)} or all')
     if args.duration <= 0 or args.settle_hold < 0:
         p.error('--duration must be positive and --settle-hold non-negative')
+    if args.radio_loss is not None and not 0.0 <= args.radio_loss <= 1.0:
+        p.error(f'--radio-loss {args.radio_loss}: give a probability between 0 and 1')
     return args
 
 
@@ -270,6 +277,8 @@ def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: in
         world = {'port_link': str(link)}
         if args.camera_noise is not None:
             world['camera_noise_m'] = float(args.camera_noise)
+        if args.radio_loss is not None:
+            world['radio_loss'] = float(args.radio_loss)
         # the file first: later -p overrides win
         children.start('hil_world', ['-m', 'swarm_bridge.hil_world_node', '--ros-args',
                                      '--params-file', str(HIL_CONFIG),

@@ -9,9 +9,12 @@ Stands for everything outside the software under test:
 - the overhead E/O camera of thesis 5.1: publishes every robot's pose as
   ``/agent_K/pose`` (geometry_msgs/PoseStamped, map frame, yaw counter-clockwise) at
   ``camera_rate_hz``, optionally with Gaussian noise (``camera_noise_m``, seeded);
-- the XBee mesh between the agents (Fig. 5.1): in a 2 x 2 m arena every radio hears
-  every other, so a frame on ``/radio/tx`` is delivered on ``/agent_K/radio/rx`` of its
-  destination, or of every other agent when broadcast.
+- the XBee mesh between the agents (Fig. 5.1): a frame on ``/radio/tx`` goes through
+  the simulator's radio medium (``swarm_bridge.hil_mesh``: range, line of sight,
+  per-receiver loss, airtime and latency, ``radio_*`` parameters whose defaults are
+  ``swarm_sim.medium.MediumConfig``'s) between the boards' poses, and what arrives is
+  delivered on ``/agent_K/radio/rx`` of its destination, or of every robot that heard
+  it when broadcast.
 
 Initial poses come from ``initial_poses`` (flat list x0,y0,yaw0,x1,... in fleet order,
 yaw in degrees counter-clockwise). Parameters: PARAMETERS below, defaults equal to
@@ -35,11 +38,14 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
 from swarm_agent.conversions import frames_or_log, frames_to_msg
-from swarm_agent.packet import BROADCAST, Packet
 from swarm_bridge.emulator import EmulatedRadio, PtyEmulator
 from swarm_bridge.fleet import load_fleet
+from swarm_bridge.hil_mesh import HilMesh
 from swarm_mission import qos
 from swarm_msgs.msg import RadioPacketArray
+from swarm_sim.medium import MediumConfig
+
+MEDIUM = MediumConfig()
 
 PARAMETERS = {
     'fleet_file': ('', 'Fleet YAML (default: the package config/fleet.yaml)'),
@@ -49,7 +55,11 @@ PARAMETERS = {
     'camera_noise_m': (0.0, 'Standard deviation of the camera position noise, m'),
     'camera_seed': (0, 'Seed of the camera noise'),
     'pump_period': (0.005, 'Seconds between serial transfers and board time steps'),
-    'relay_radio': (True, 'Deliver /radio/tx frames to every agent (XBee mesh in range)'),
+    'relay_radio': (True, 'Carry /radio/tx frames to the agents through the radio medium'),
+    'radio_loss': (MEDIUM.loss, 'Per-receiver frame loss probability of the mesh'),
+    'radio_range_m': (MEDIUM.range_m, 'Radio range of the mesh, m'),
+    'radio_latency_s': (MEDIUM.latency_s, 'Propagation and processing delay of a frame, s'),
+    'radio_seed': (0, 'Seed of the frame losses'),
 }
 
 
@@ -74,6 +84,15 @@ class HilWorldNode(Node):
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
         self.params = p
         self.robots = load_fleet(p['fleet_file'] or None)
+        self._mesh = None
+        if p['relay_radio']:
+            try:
+                self._mesh = HilMesh([r.agent_id for r in self.robots], MediumConfig(
+                    range_m=p['radio_range_m'], loss=p['radio_loss'],
+                    latency_s=p['radio_latency_s']), p['radio_seed'])
+            except ValueError as exc:
+                raise ValueError(f'{exc}: set radio_loss, radio_range_m and radio_latency_s '
+                                 'in config/hil.yaml or with --ros-args -p') from None
         self.emulator = PtyEmulator(EmulatedRadio.for_fleet([r.address for r in self.robots]))
         self.boards = {r.agent_id: self.emulator.radio.boards[r.address] for r in self.robots}
         poses = initial_poses([float(v) for v in p['initial_poses']], len(self.robots))
@@ -90,7 +109,8 @@ class HilWorldNode(Node):
         self._rx_pubs = {k: self.create_publisher(RadioPacketArray, f'/agent_{k}/radio/rx',
                                                   radio)
                          for k in self.boards}
-        if p['relay_radio']:
+        if self._mesh is not None:
+            self._move_mesh()
             self.create_subscription(RadioPacketArray, '/radio/tx', self._on_tx, radio)
         self.create_timer(p['pump_period'], self._pump)
         self.create_timer(1.0 / p['camera_rate_hz'], self._camera)
@@ -98,7 +118,10 @@ class HilWorldNode(Node):
                                + (f' (linked at {self._link})' if self._link else ''))
 
     def _pump(self) -> None:
-        self.emulator.pump(time.monotonic())
+        now = time.monotonic()
+        self.emulator.pump(now)
+        if self._mesh is not None:
+            self._deliver(now)
 
     def _camera(self) -> None:
         stamp = self.get_clock().now().to_msg()
@@ -114,18 +137,29 @@ class HilWorldNode(Node):
             msg.pose.orientation.z = math.sin(yaw / 2.0)
             msg.pose.orientation.w = math.cos(yaw / 2.0)
             self._pose_pubs[k].publish(msg)
+        if self._mesh is not None:
+            self._move_mesh()
+
+    def _move_mesh(self) -> None:
+        """The mesh's links between the boards' true poses (at the camera rate)."""
+        self._mesh.move({k: board.pose()[:2] for k, board in self.boards.items()})
 
     def _on_tx(self, msg: RadioPacketArray) -> None:
-        for stamp, packet in frames_or_log(msg, self.get_logger(), '/radio/tx'):
-            self._relay(stamp, packet, msg.header.stamp)
+        now = time.monotonic()
+        for _, packet in frames_or_log(msg, self.get_logger(), '/radio/tx'):
+            self._mesh.send(now, packet)
 
-    def _relay(self, stamp: float, packet: Packet, batch_stamp) -> None:
-        if packet.source not in self.boards:
+    def _deliver(self, now: float) -> None:
+        due = self._mesh.due(now)
+        if not due:
             return
-        for k, pub in self._rx_pubs.items():
-            if k != packet.source and packet.destination in (BROADCAST, k):
+        stamp = self.get_clock().now()
+        seconds, stamp = stamp.nanoseconds * 1e-9, stamp.to_msg()
+        for packet, receivers in due:
+            frame = [(seconds, packet)]   # stamped on arrival, as sim_node does
+            for k in receivers:
                 # A real link delivers frame by frame: batches of one.
-                pub.publish(frames_to_msg([(stamp, packet)], batch_stamp))
+                self._rx_pubs[k].publish(frames_to_msg(frame, stamp))
 
     def close(self) -> None:
         """Remove the pty link and close the pty."""
@@ -143,6 +177,9 @@ def main(args: list[str] | None = None) -> int:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except ValueError as exc:
+        print(f'hil_world_node: {exc}', file=sys.stderr)
+        return 2
     finally:
         if node is not None:
             node.close()
