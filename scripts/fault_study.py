@@ -16,8 +16,9 @@ and reports per trial: coverage (``fraction_inside``, share of the final goals c
 a living agent, share with an agent of their type truly within ``GOAL_TOLERANCE_M``,
 epsilon_t/epsilon_g), agreement of the
 surviving agents (``assignment_agreement`` over the run and after the fault, at the end,
-``duplicate_goal_claims``), recovery time (settling time, eq. 4.1, minus the last fault
-time), collisions (``min_separation_ratio`` over the run and after the fault), and DSDV
+``duplicate_goal_claims_final`` and ``_peak``), recovery time (settling time, eq. 4.1 with
+its hold window, minus the last fault time), collisions (``min_separation_ratio`` over every
+simulation step of the run and after the fault, ``contacts``), and DSDV
 health sampled every 2 s from the brains' route tables: the largest finite hop count
 seen (count-to-infinity would push it to the network size or beyond), next-hop loops,
 finite routes to dead agents, and the true link graph's connected components.
@@ -51,7 +52,7 @@ from swarm_mission.robot_types import RobotTypeError
 from swarm_mission.shapes import ShapeError
 from swarm_sim.headless import HeadlessSwarm, Scenario, ScenarioError, TrialRecord
 from swarm_sim.medium import MediumConfig, RadioMedium, SweepingWall
-from swarm_sim.metrics import min_separation_ratio, settling_time
+from swarm_sim.metrics import agreement_by_sample
 
 GOAL_TOLERANCE_M = 1.5      # a goal counts as covered by an agent of its type this close
 SAMPLE_EVERY = 4            # route tables sampled every 4th record frame (2 s)
@@ -60,8 +61,9 @@ KILLS = (10, 30)
 RANGES = (12.0, 8.0, 5.0, 3.0)
 MEAN_KEYS = ('fraction_inside', 'goals_claimed', 'goals_reached', 'epsilon_t', 'epsilon_g',
              'assignment_agreement', 'agreement_after_fault', 'final_agreement',
-             'duplicate_goal_claims', 'settling_time', 'recovery_time', 'settled',
-             'min_separation_ratio', 'min_separation_after_fault', 'max_hops_seen',
+             'duplicate_goal_claims_final', 'duplicate_goal_claims_peak', 'settling_time',
+             'recovery_time', 'settled', 'min_separation_ratio', 'min_separation_after_fault',
+             'contacts', 'max_hops_seen',
              'routing_loops', 'stale_routes_to_dead', 'max_components_after_fault',
              'beacons_alive', 'min_beacons_heard', 'final_modes_normal', 'passed',
              'duration', 'wall_seconds')
@@ -298,16 +300,11 @@ def build_swarm(case: dict, config: dict, seed: int) -> HeadlessSwarm:
 
 
 def _agreement(record: TrialRecord, frames: np.ndarray) -> float:
-    """Mean share of assigned NORMAL agents of a type holding the type's usual digest."""
-    shares = []
-    for k in frames:
-        digests, alive, modes = record.digests[k], record.alive[k], record.modes[k]
-        for t in np.unique(record.types):
-            d = digests[alive & (modes == 0) & (digests != 0) & (record.types == t)]
-            if len(d):
-                values, counts = np.unique(d, return_counts=True)
-                shares.append(float(counts.max() / len(d)))
-    return float(np.mean(shares)) if shares else float('nan')
+    """Mean over ``frames`` of ``swarm_sim.metrics.agreement_by_sample`` (NaN: none after
+    the first complete consensus round)."""
+    shares = agreement_by_sample(record.alive, record.digests, record.types)[frames]
+    shares = shares[np.isfinite(shares)]
+    return float(np.mean(shares)) if len(shares) else float('nan')
 
 
 def goals_claimed(record: TrialRecord) -> float:
@@ -333,19 +330,23 @@ def goals_reached(record: TrialRecord) -> float:
     return covered / len(record.goals)
 
 
-def coverage_columns(record, shape, radius: np.ndarray, first: float, last: float
-                     ) -> dict[str, Any]:
+def coverage_columns(record, metrics: dict, first: float, last: float,
+                     separation: tuple[np.ndarray, np.ndarray] | None) -> dict[str, Any]:
     """Columns computed from a record of truth and belief (headless or ROS), same keys.
 
     ``record`` has times, positions, velocities, alive, modes, digests, goal_ids, types
-    and goals (the final goals: id, type, x, y); ``radius`` each robot's coverage radius.
+    and goals (the final goals: id, type, x, y); ``metrics`` the run's trial metrics
+    (``settling_time`` with its hold window); ``separation`` the simulator's (times,
+    smallest separation ratio of the steps up to each time), None if it has none.
     """
     after = np.flatnonzero(record.times >= first)
     if len(after) == 0:
         after = np.array([len(record.times) - 1])
     alive_now = record.alive[-1]
-    settle = settling_time(record.times, record.positions, record.velocities, shape,
-                           record.alive)
+    settle = metrics.get('settling_time')
+    sep_after = None
+    if separation is not None and np.any(separation[0] >= first):
+        sep_after = float(np.min(separation[1][separation[0] >= first]))
     return {
         'fault_time': first, 'last_fault_time': last,
         'agents': len(record.types), 'agents_alive': int(alive_now.sum()),
@@ -354,8 +355,7 @@ def coverage_columns(record, shape, radius: np.ndarray, first: float, last: floa
         'final_agreement': _agreement(record, np.array([len(record.times) - 1])),
         'settling_time': settle, 'settled': settle is not None,
         'recovery_time': None if settle is None else max(0.0, settle - last),
-        'min_separation_after_fault': min_separation_ratio(
-            record.positions[after][:, alive_now], radius[alive_now]),
+        'min_separation_after_fault': sep_after,
         'critical_range_at_fault': critical_range(
             record.positions[after[0]][record.alive[after[0]]]),
         'critical_range_final': critical_range(record.positions[-1][alive_now]),
@@ -372,7 +372,7 @@ def judge(row: dict[str, Any]) -> dict[str, Any]:
     # goals_reached (true distance) is reported too; it is bounded by localization.
     row['passed'] = bool(row['settled'] and row['fraction_inside'] >= 1.0
                          and row['goals_claimed'] >= 1.0
-                         and row['duplicate_goal_claims'] == 0
+                         and row['duplicate_goal_claims_final'] == 0
                          and not row['count_to_infinity'] and row['routing_loops'] == 0
                          and not row.get('crashed'))
     return row
@@ -386,17 +386,16 @@ def run_case(case: dict, config: dict, seed: int) -> dict[str, Any]:
     record = swarm.run(progress=monitor)
     monitor.sample(float(record.times[-1]))
     m = record.metrics
-    radii = {t: r.coverage_radius for t, r in swarm.types.items()}
-    radius = np.array([radii[int(t)] for t in record.types])
     beacons_alive = int((swarm.is_beacon & swarm.alive).sum())
     row: dict[str, Any] = {
         'case': case['name'], 'kind': case['kind'], 'value': case['value'], 'seed': seed,
-        **coverage_columns(record, swarm.mission.shape, radius, first, last),
+        **coverage_columns(record, m, first, last, (record.times, record.min_separation)),
         'fraction_inside': m['fraction_inside'],
         'epsilon_t': m['epsilon_t'], 'epsilon_g': m['epsilon_g'],
         'assignment_agreement': m['assignment_agreement'],
-        'duplicate_goal_claims': m['duplicate_goal_claims'],
-        'min_separation_ratio': m['min_separation_ratio'],
+        'duplicate_goal_claims_final': m['duplicate_goal_claims_final'],
+        'duplicate_goal_claims_peak': m['duplicate_goal_claims_peak'],
+        'min_separation_ratio': m['min_separation_ratio'], 'contacts': m['contacts'],
         'max_hops_seen': monitor.max_hops,
         'count_to_infinity': bool(monitor.max_hops_vs_size > 0),
         'routing_loops': monitor.loops,
@@ -469,7 +468,7 @@ def markdown_table(summary: dict[str, dict[str, Any]], crashes: bool = False) ->
             f'({_fmt(s["goals_reached"])}) | '
             f'{_fmt(s["epsilon_t"])} | {_fmt(s["epsilon_g"])} | '
             f'{_fmt(s["agreement_after_fault"], 3)} | {_fmt(s["final_agreement"], 3)} | '
-            f'{_fmt(s["duplicate_goal_claims"], 1)} | {seeds - s["unsettled"]}/{seeds} | '
+            f'{_fmt(s["duplicate_goal_claims_final"], 1)} | {seeds - s["unsettled"]}/{seeds} | '
             f'{_fmt(s["recovery_time"], 0)} | {_fmt(s["min_separation_ratio"])} '
             f'({_fmt(s["min_separation_after_fault"])}) | '
             f'{s["max_hops_seen"]} / {s["agents"]} | {_fmt(s["routing_loops"], 1)} | '
@@ -684,7 +683,6 @@ def ros_row(case: dict, config: dict, seed: int, run_dir: pathlib.Path, plan: di
     """The study's row of one ROS run, from its metrics.json, record.npz and logs."""
     from types import SimpleNamespace
 
-    from swarm_mission.robot_types import load_robot_types
     from swarm_mission.shapes import load_shape
     from swarm_sim.fleet import load_fleet
 
@@ -706,7 +704,6 @@ def ros_row(case: dict, config: dict, seed: int, run_dir: pathlib.Path, plan: di
     fleet = {r.id: r for r in load_fleet(run_dir / 'fleet.yaml')}
     types = np.array([fleet[a].type for a in ids])
     is_beacon = np.array([fleet[a].is_beacon for a in ids], dtype=bool)
-    radii = {t: r.coverage_radius for t, r in load_robot_types().items()}
     goals = [SimpleNamespace(id=int(i), type=int(t), x=float(xy[0]), y=float(xy[1]))
              for i, t, xy in zip(data['goal_id'], data['goal_type'], data['goal_xy'])]
     record = SimpleNamespace(
@@ -724,8 +721,10 @@ def ros_row(case: dict, config: dict, seed: int, run_dir: pathlib.Path, plan: di
     applied = [(float(e.get('sent_at', e['time'])), e['name'], float(e['value']))
                for e in metrics.get('sim_settings', []) if e.get('ok')]
     shape = load_shape(config['shape'])
-    radius = np.array([radii[int(t)] for t in types])
-    row.update(coverage_columns(record, shape, radius, plan['first'], plan['last']))
+    separation = ((np.asarray(data['separation_times'], dtype=float),
+                   np.asarray(data['separation_min'], dtype=float))
+                  if 'separation_times' in data else None)
+    row.update(coverage_columns(record, metrics, plan['first'], plan['last'], separation))
     row.update(route_columns(data, record, ids, plan['first']))
     row.update(link_columns(record, ids, is_beacon, applied, config, shape, plan['first']))
     medium_file = run_dir / 'medium.json'
@@ -733,8 +732,10 @@ def ros_row(case: dict, config: dict, seed: int, run_dir: pathlib.Path, plan: di
         'fraction_inside': metrics['fraction_inside'],
         'epsilon_t': metrics.get('epsilon_t'), 'epsilon_g': metrics.get('epsilon_g'),
         'assignment_agreement': metrics.get('assignment_agreement'),
-        'duplicate_goal_claims': metrics.get('duplicate_goal_claims'),
+        'duplicate_goal_claims_final': metrics.get('duplicate_goal_claims_final'),
+        'duplicate_goal_claims_peak': metrics.get('duplicate_goal_claims_peak'),
         'min_separation_ratio': metrics.get('min_separation_ratio'),
+        'contacts': metrics.get('contacts'),
         'beacons_alive': int((is_beacon & record.alive[-1]).sum()),
         'final_modes_normal': metrics.get('final_modes_normal'),
         'rms_localization_error': metrics.get('rms_localization_error'),

@@ -107,9 +107,10 @@ def speeds(times: np.ndarray, positions: np.ndarray,
 
 
 def analyse(times: np.ndarray, positions: np.ndarray, shape, types: np.ndarray,
-            goals: list, radii: dict[int, float]) -> dict:
-    """Metrics of one run: displacement, settling time (eq. 5.4), bounds, goal errors."""
-    from swarm_sim.metrics import displacement_lower_bound, path_lengths, settling_time
+            goals: list, radii: dict[int, float], hold_s: float = 0.0) -> dict:
+    """Metrics of one run: displacement, settling time (eq. 5.4, held ``hold_s`` seconds
+    to the end of the run), bounds, goal errors."""
+    from swarm_sim.metrics import displacement_lower_bound, path_lengths, settle_from_record
 
     velocities = speeds(times, positions)
     final = positions[-1]
@@ -125,8 +126,8 @@ def analyse(times: np.ndarray, positions: np.ndarray, shape, types: np.ndarray,
     return {
         'total_displacement': float(path_lengths(positions).sum()),
         'per_robot_displacement': [float(d) for d in path_lengths(positions)],
-        'settling_time': settling_time(times, positions, velocities, shape,
-                                       speed=SETTLE_SPEED),
+        'settling_time': settle_from_record(times, positions, velocities, shape,
+                                            hold_s=hold_s)['settling_time'],
         'displacement_lower_bound': displacement_lower_bound(
             positions[0], goal_xy[np.argsort(goal_types, kind='stable')],
             np.sort(types, kind='stable'), shape, radii)
@@ -348,7 +349,7 @@ def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: in
         return {'shape': name, 'outcome': outcome}
     times, positions = resample([tracks[k] for k in ids], t_start, t_end)
     robot_types = np.array([r.type for r in robots])
-    metrics = analyse(times, positions, shape, robot_types, goals, radii)
+    metrics = analyse(times, positions, shape, robot_types, goals, radii, args.settle_hold)
     metrics.update(
         shape=name, outcome=outcome, thesis_table=THESIS_TABLE[name],
         thesis_total_displacement=THESIS[name][0], thesis_settling_time=THESIS[name][1],

@@ -29,7 +29,9 @@ Writes into --out: ``metrics.json`` (the keys of scripts/evaluate.py plus
 real_time_factor, max_localization_error, consensus_rounds, cpu and memory figures),
 ``fleet.yaml``, ``record.npz`` (the monitor's 2 Hz record: times, true positions and
 velocities, estimated positions, modes, goal ids, assignment digests and rounds; the
-final goals; every agent's DSDV route table sampled every 2 s of sim time: route_times,
+final goals; separation_times/separation_min: the smallest separation ratio of the sim's
+physics steps up to each truth time, from the sim's ``separation.json``; every agent's
+DSDV route table sampled every 2 s of sim time: route_times,
 route_next (next hop, -1: none), route_hops (255: broken or none), route_stamp),
 ``logs/*.log`` and the figures
 ``trajectories.png``, ``mesh.png``, ``localization_error.png`` and ``modes.png``.
@@ -46,6 +48,7 @@ from __future__ import annotations
 
 import argparse
 import faulthandler
+import json
 import os
 import pathlib
 import resource
@@ -81,7 +84,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument('--duration', type=float, default=300.0, help='sim seconds at most')
     p.add_argument('--half-size', type=float, default=50.0,
                    help='workspace half-width in metres (thesis: 50)')
-    p.add_argument('--settle-hold', type=float, default=5.0)
+    p.add_argument('--settle-hold', type=float, default=None,
+                   help='sim seconds the settled condition (eq. 4.1) must hold, after the '
+                        'last change, before the run ends settled (default: '
+                        'swarm_sim.metrics.SETTLE_HOLD_S, 30)')
     p.add_argument('--seed', type=int, default=0)
     p.add_argument('--composed', action='store_true', help='all agents in one process')
     p.add_argument('--decentralized', action='store_true',
@@ -283,6 +289,11 @@ def validate(args: argparse.Namespace):
         check_before_end(flag, [t for t, _ in parsed], args.duration)
         robot_faults += [(t, ids, topic) for t, ids in parsed]
     args.robot_faults = sorted(robot_faults)
+    if args.settle_hold is None:
+        from swarm_sim.metrics import SETTLE_HOLD_S
+        args.settle_hold = SETTLE_HOLD_S
+    if not args.settle_hold >= 0.0:
+        raise LaunchError(f'--settle-hold {args.settle_hold:g} must be >= 0 s')
     if not 0.0 <= args.min_duration <= args.duration:
         raise LaunchError(f'--min-duration {args.min_duration:g} must be within 0 and '
                           f'--duration {args.duration:g}')
@@ -605,7 +616,7 @@ def main(argv: list[str] | None = None) -> int:
     from swarm_sim.monitor_node import MonitorNode
 
     rclpy.init()
-    monitor = MonitorNode(ids, parameter_overrides=[
+    monitor = MonitorNode(ids, settle_hold_s=args.settle_hold, parameter_overrides=[
         rclpy.parameter.Parameter('use_sim_time', value=True)])
     fault_pubs = {topic: monitor.create_publisher(Int32MultiArray, topic, 10)
                   for topic in ('/swarm/kill', '/swarm/radio_off', '/swarm/radio_on')}
@@ -654,12 +665,8 @@ def main(argv: list[str] | None = None) -> int:
     wall0 = time.monotonic()
     peak_rss = peak_pss = 0
     pss_due = 0.0
-    outcome = 'duration'
-    settled_since = None
-    last_change_t = 0.0
-    last_goal_version = 0
+    outcome = 'not settled'
     crashed = None
-    removed = 0
     last_print = 0.0
     started = None  # (wall seconds, sim seconds) when every agent had been heard
     t = 0.0
@@ -687,13 +694,12 @@ def main(argv: list[str] | None = None) -> int:
                 if topic == '/swarm/kill':
                     for v in victims:
                         children.kill(f'agent_{v}')
-                    removed += len(victims)
                 what = {'/swarm/kill': 'removed agents', '/swarm/radio_off': 'radio off for',
                         '/swarm/radio_on': 'radio back on for'}[topic]
                 print(f'\nlaunch_swarm: t={t:.1f} s {what} {victims}', flush=True)
                 fault_log.append({'time': when, 'sent_at': t, 'topic': topic,
                                   'agents': victims})
-                last_change_t = t
+                monitor.change(t)
             while obstacle_moves and obstacle_moves[0][0] <= t:
                 when, move = obstacle_moves.pop(0)
                 move_pub.publish(Float64MultiArray(data=move))
@@ -701,13 +707,13 @@ def main(argv: list[str] | None = None) -> int:
                                   'obstacle': int(move[0]), 'offset': move[1:]})
                 print(f'\nlaunch_swarm: t={t:.1f} s obstacle {int(move[0])} moved by '
                       f'({move[1]:g}, {move[2]:g}) m', flush=True)
-                last_change_t = t
+                monitor.change(t)
             while settings and settings[0][0] <= t and sim_params_client.services_are_ready():
                 when, name, value = settings.pop(0)
                 entry = {'time': when, 'sent_at': t, 'name': name, 'value': value}
                 pending_sets.append((entry, sim_params_client.set_parameters(
                     [rclpy.parameter.Parameter(name, value=value)])))
-                last_change_t = t
+                monitor.change(t)
             for entry, future in [p for p in pending_sets if p[1].done()]:
                 pending_sets.remove((entry, future))
                 result = future.result()
@@ -726,8 +732,6 @@ def main(argv: list[str] | None = None) -> int:
             if t >= next_route_sample:
                 routes.sample(t)
                 next_route_sample = t + ROUTE_PERIOD_S
-            if status['goal_version'] != last_goal_version:
-                last_goal_version, last_change_t = status['goal_version'], t
             wall = time.monotonic() - wall0
             rtf = t / wall if wall > 0 else 0.0
             line = (f'\rt={t:7.1f} s  rtf={rtf:4.2f}  heard={status["agents_heard"]:3d}/'
@@ -741,16 +745,13 @@ def main(argv: list[str] | None = None) -> int:
                 print(line.lstrip('\r'), flush=True)
             if t >= args.duration:
                 break
-            if status['settled'] >= args.agents - removed and not robot_faults and \
-                    not obstacle_moves and \
+            # Settled (eq. 4.1) for the hold window since the last change (the monitor
+            # checks every truth message), with nothing left to do.
+            if status['settle_held'] and not robot_faults and not obstacle_moves and \
                     not settings and not pending_sets and t >= args.min_duration and \
-                    t > args.last_switch and t - last_change_t > args.settle_hold:
-                settled_since = t if settled_since is None else settled_since
-                if t - settled_since >= args.settle_hold:
-                    outcome = 'settled'
-                    break
-            else:
-                settled_since = None
+                    t > args.last_switch:
+                outcome = 'settled'
+                break
     except KeyboardInterrupt:
         outcome = 'interrupted'
     finally:
@@ -775,6 +776,7 @@ def main(argv: list[str] | None = None) -> int:
         with monitor.lock:
             heard = [a for a, st in zip(monitor.agent_ids, monitor.states) if st is not None]
         goal_versions = monitor.goal_version
+        settling = monitor.settle.result()
         spin_thread.join(timeout=5.0)
     print()
     from swarm_sim.report import run_report, write_metrics
@@ -786,6 +788,17 @@ def main(argv: list[str] | None = None) -> int:
         goal_id=np.array([g.id for g in final_goals], dtype=np.int64),
         goal_type=np.array([g.type for g in final_goals], dtype=np.int64),
         goal_xy=np.array([[g.x, g.y] for g in final_goals], dtype=float).reshape(-1, 2))
+    # The sim's closest approach of coverage circles and body contacts over every physics
+    # step (sim_node writes it when it closes); without it no separation is reported.
+    separation = None
+    try:
+        separation = json.loads((out / 'separation.json').read_text(encoding='utf-8'))
+        series = separation.pop('series')
+        monitor_record.update(separation_times=np.array(series['times'], dtype=float),
+                              separation_min=np.array(series['min'], dtype=float))
+    except (OSError, ValueError, KeyError):
+        print('launch_swarm: the sim left no separation.json: no separation metrics',
+              file=sys.stderr)
     np.savez_compressed(out / 'record.npz', **monitor_record)
     unapplied = [{'time': w, 'name': n, 'value': v, 'ok': False, 'reason': 'not sent'}
                  for w, n, v in settings] + [
@@ -794,7 +807,9 @@ def main(argv: list[str] | None = None) -> int:
     shapes = [s for _, s in monitor_shapes] or [shape]
     metrics = run_report(out, monitor_record, [r.type for r in robots],
                          [r.is_beacon for r in robots], shapes, monitor_goals,
-                         shape_times=[t for t, _ in monitor_shapes] or None, extra={
+                         shape_times=[t for t, _ in monitor_shapes] or None,
+                         settling=settling, separation=separation,
+                         settle_hold_s=args.settle_hold, extra={
                              'mode': mode, 'outcome': outcome, 'wall_seconds': wall,
                              'cpu_seconds_children': cpu,
                              'cpu_cores_used': cpu / wall if wall > 0 else 0.0,

@@ -49,7 +49,7 @@ def test_twelve_agents_form_the_shape_through_ros_processes(processes, tmp_path)
     m = _launch(processes, tmp_path / 'run', '--composed')
     assert m['outcome'] == 'settled', m
     assert m['fraction_inside'] == 1.0
-    assert m['duplicate_goal_claims'] == 0
+    assert m['duplicate_goal_claims_final'] == 0
     assert m['assignment_agreement'] >= 0.95
     # final_modes_normal is reported, not asserted: an agent that misses one localization
     # tick (fewer than three beacons heard) is LOST for three seconds while settled.
@@ -65,7 +65,7 @@ def test_self_repair_after_two_agents_are_removed(processes, tmp_path):
     assert not any(r['beacon'] for r in fleet if r['id'] in (2, 10)), 'removed a beacon'
     assert m['outcome'] == 'settled', m
     assert m['fraction_inside'] == 1.0
-    assert m['duplicate_goal_claims'] == 0
+    assert m['duplicate_goal_claims_final'] == 0
     assert m['goal_versions'] >= 2, 'the mission did not re-partition for the survivors'
 
 

@@ -116,7 +116,7 @@ def test_a_swarm_split_over_two_hosts_forms_the_shape(processes, two_hosts, ros_
     print(summary)
     assert m['outcome'] == 'settled', m
     assert m['fraction_inside'] == 1.0, summary
-    assert m['duplicate_goal_claims'] == 0
+    assert m['duplicate_goal_claims_final'] == 0
     assert m['assignment_agreement'] >= 0.95, summary
     assert m['truth_subscribers'] == ['/swarm_monitor'], m['truth_subscribers']
     # Crossed: A's monitor heard B's agents, and B's robots (which the sim in A moves only

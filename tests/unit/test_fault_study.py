@@ -15,7 +15,8 @@ from swarm_sim.headless import HeadlessSwarm, Scenario
 ROW_KEYS = {'case', 'seed', 'fraction_inside', 'goals_claimed', 'goals_reached',
             'epsilon_t', 'epsilon_g',
             'assignment_agreement', 'agreement_after_fault', 'final_agreement',
-            'duplicate_goal_claims', 'settling_time', 'recovery_time', 'min_separation_ratio',
+            'duplicate_goal_claims_final', 'duplicate_goal_claims_peak', 'settling_time',
+            'recovery_time', 'min_separation_ratio', 'contacts',
             'min_separation_after_fault', 'max_hops_seen', 'count_to_infinity',
             'routing_loops', 'stale_routes_to_dead', 'max_components_after_fault',
             'beacons_alive', 'min_beacons_heard', 'passed', 'target_applies'}
@@ -36,7 +37,7 @@ def test_quick_study_writes_table_plot_and_json(tmp_path, capsys):
         assert row['routing_loops'] == 0
     lossless = next(r for r in data['trials'] if r['case'] == 'loss_0')
     assert lossless['fraction_inside'] == 1.0 and lossless['goals_claimed'] == 1.0
-    assert lossless['duplicate_goal_claims'] == 0 and lossless['settled']
+    assert lossless['duplicate_goal_claims_final'] == 0 and lossless['settled']
     killed = next(r for r in data['trials'] if r['case'] == 'kill_30')
     assert killed['agents_alive'] == 4 and killed['fault_time'] >= 40.0
     assert killed['stale_routes_to_dead'] == 0  # broken links invalidated the routes
@@ -142,8 +143,9 @@ def _synthetic_ros_run(run_dir):
              goal_id=np.array([0, 1, 2]), goal_type=np.array([1, 1, 1]),
              goal_xy=xy[[0, 1, 3]])
     metrics = {'fraction_inside': 1.0, 'epsilon_t': 0.1, 'epsilon_g': 0.05,
-               'assignment_agreement': 1.0, 'duplicate_goal_claims': 1,
-               'min_separation_ratio': 4.0, 'outcome': 'settled', 'duration': 4.5,
+               'assignment_agreement': 1.0, 'duplicate_goal_claims_final': 1,
+               'duplicate_goal_claims_peak': 1, 'min_separation_ratio': 4.0, 'contacts': 0,
+               'settled': True, 'settling_time': 0.0, 'outcome': 'settled', 'duration': 4.5,
                'sim_settings': [{'time': 2.0, 'sent_at': 2.0, 'name': 'radio_range_m',
                                  'value': 3.0, 'ok': True, 'reason': ''}]}
     (run_dir / 'metrics.json').write_text(json.dumps({'trials': [metrics]}))

@@ -22,9 +22,9 @@ def _min_separation(proximity_period_s: float) -> dict:
 
 def test_measured_offsets_keep_coverage_circles_apart():
     with_sensor = _min_separation(0.1)
-    # min_separation_ratio: smallest distance / (r_i + r_j) over the run; 1 is contact
-    # of the coverage circles (the pybullet bodies fit inside them).
-    assert with_sensor['min_separation_ratio'] >= 1.0
+    # min_separation_ratio: smallest distance / (r_i + r_j) over every control step; 1
+    # is contact of the coverage circles (the pybullet bodies fit inside them).
+    assert with_sensor['min_separation_ratio'] >= 1.0 and with_sensor['contacts'] == 0
     # Avoidance on the neighbours' broadcast estimates alone (no sensor): they overlap.
     without = _min_separation(0.0)
-    assert without['min_separation_ratio'] < 0.8
+    assert without['min_separation_ratio'] < 1.0 and without['contacts'] >= 1

@@ -157,6 +157,7 @@ class Snapshot:
     assignment_digest: int
     rows_used: int
     settled: bool
+    localized: bool = False        # has had a trilateration fix of its own
 
 
 class AgentBrain:
@@ -340,7 +341,7 @@ class AgentBrain:
             goal_id=self.goal_id, goal_version=self.goal_version,
             assignment_round=self.assignment_round,
             assignment_digest=self.assignment_digest, rows_used=self.rows_used,
-            settled=self.settled)
+            settled=self.settled, localized=self.localizer.stats['localizations'] > 0)
 
     def status_line(self) -> str:
         """One line for logs: mode, estimate, fixes, neighbourhood and assignment."""

@@ -9,7 +9,9 @@ trial takes seconds.
 One control step (``control_dt``, 50 Hz by default) does, in order: every living brain
 steps (inner LQR loop; outer loop at 2 Hz; localization every 3 s) and hands its packets
 to the medium; the dynamics integrate the forces; the medium delivers due packets; the
-IMU, range, GPS and proximity models feed the brains.
+IMU, range, GPS and proximity models feed the brains; the settled condition (eq. 4.1)
+and the closest approach of the robots' coverage circles are checked
+(``swarm_sim.metrics.SettleTracker``, ``SeparationTracker``).
 """
 
 from __future__ import annotations
@@ -29,11 +31,11 @@ from swarm_mission.shapes import Shape
 from swarm_sim.fleet import place_fleet, PLACEMENT_STD_M, random_fleet, RobotSpec
 from swarm_sim.medium import MediumConfig, RadioMedium
 from swarm_sim.metrics import (
-    belief_metrics,
-    change_metrics,
-    inside_mask,
-    run_metrics,
-    SETTLE_SPEED,
+    SeparationTracker,
+    SETTLE_HOLD_S,
+    settled_now,
+    SettleTracker,
+    trial_metrics,
 )
 from swarm_sim.sensors import GpsModel, ImuModel, ProximityModel
 
@@ -62,7 +64,7 @@ class Scenario:
     gps_period_s: float = 1.0             # beacon GPS rate
     proximity_period_s: float = 0.1       # proximity sensor rate (10 Hz); 0: no sensor
     record_period_s: float = 0.5          # truth recording rate (2 Hz)
-    settle_hold_s: float = 5.0            # stop after this long settled (after the last change)
+    settle_hold_s: float = SETTLE_HOLD_S  # run on this long after settling (eq. 4.1 hold)
     localization_period_s: float = 3.0
     sequence: Sequence[SequenceStep] = ()  # further shapes at given times (4.3.4)
     removals: Sequence[tuple[float, Sequence[int]]] = ()  # (time, agent ids) to remove
@@ -102,6 +104,9 @@ class TrialRecord:
     alive: np.ndarray                 # (T, N) bool
     goal_ids: np.ndarray              # (T, N)
     digests: np.ndarray               # (T, N) assignment digests
+    localized: np.ndarray             # (T, N) bool: the agent has had a fix of its own
+    min_separation: np.ndarray        # (T,) smallest separation ratio of the control
+    #                                   steps since the previous sample (inf: none near)
     types: np.ndarray                 # (N,)
     beacons: np.ndarray               # (N,) bool
     goals: list                       # final goals
@@ -180,7 +185,8 @@ class HeadlessSwarm:
 
     # ------------------------------------------------------------------ run
     def run(self, progress: Callable[[float, float], None] | None = None) -> TrialRecord:
-        """Run until settled for ``settle_hold_s`` after the last change, or the duration."""
+        """Run until the settled condition has held for ``settle_hold_s`` after the last
+        change with nothing scheduled, or for the duration (then not settled)."""
         sc = self.scenario
         wall0 = wallclock.perf_counter()
         dt = sc.control_dt
@@ -188,7 +194,6 @@ class HeadlessSwarm:
         pending_shapes = sorted(sc.sequence, key=lambda s: s.time)
         pending_removals = sorted(sc.removals, key=lambda r: r[0])
         pending_events = sorted(sc.events, key=lambda e: e[0])
-        last_change = 0.0
         steps = int(round(sc.duration_s / dt))
         every = {name: max(1, int(round(period / dt))) for name, period in (
             ('medium', sc.medium_update_s), ('range', sc.range_period_s),
@@ -196,23 +201,24 @@ class HeadlessSwarm:
             ('gps', sc.gps_period_s), ('record', sc.record_period_s))}
         rec: dict[str, list] = {k: [] for k in (
             'times', 'positions', 'velocities', 'estimates', 'modes', 'alive', 'goal_ids',
-            'digests')}
+            'digests', 'localized', 'min_separation')}
         beacon_ids = [self.ids[i] for i in np.flatnonzero(self.is_beacon)]
         forces = np.zeros((self.n, 2))
-        settled_since: float | None = None
+        settle = SettleTracker(sc.settle_hold_s)
+        separation = SeparationTracker()
         self.medium.update_positions(self.ids, self.dynamics.positions)
         imu_v = self.dynamics.velocities.copy()
         for k in range(steps + 1):
             t = k * dt
             while pending_shapes and pending_shapes[0].time <= t:
                 self._apply_shape(t, pending_shapes.pop(0).shape)
-                last_change, settled_since = t, None
+                settle.change(t)
             while pending_removals and pending_removals[0][0] <= t:
                 self._remove(t, pending_removals.pop(0)[1])
-                last_change, settled_since = t, None
+                settle.change(t)
             while pending_events and pending_events[0][0] <= t:
                 pending_events.pop(0)[1](self, t)
-                last_change, settled_since = t, None
+                settle.change(t)
             # Brains: control step and packets out.
             for i, brain in enumerate(self.brains):
                 if brain is None:
@@ -222,8 +228,11 @@ class HeadlessSwarm:
                 forces[i] = out.force
                 for packet in out.packets:
                     self.medium.transmit(t, packet)
-            # Physics.
+            # Physics, and the metrics that need every step.
             self.dynamics.step(dt, np.where(self.alive[:, None], forces, 0.0))
+            separation.update(self.dynamics.positions, self.radii, self.alive)
+            settle.update(t, settled_now(self.mission.shape, self.dynamics.positions,
+                                         self.dynamics.velocities, self.alive))
             if k % every['medium'] == 0:
                 living = np.flatnonzero(self.alive)
                 self.medium.update_positions([self.ids[i] for i in living],
@@ -265,26 +274,16 @@ class HeadlessSwarm:
                 self.mission.check_liveness(t)
                 if self.mission.goal_version != version:
                     self._broadcast_mission()
-                    last_change, settled_since = t, None
+                    settle.change(t)
                 self._record(t, rec)
+                rec['min_separation'].append(separation.take_interval_min())
                 if progress is not None:
                     progress(t, sc.duration_s)
-                if self._all_settled():
-                    settled_since = t if settled_since is None else settled_since
-                    # Never stop before a scheduled shape change, removal or fault.
-                    if t - settled_since >= sc.settle_hold_s and t - last_change >= \
-                            sc.settle_hold_s and not (pending_shapes or pending_removals
-                                                      or pending_events):
-                        break
-                else:
-                    settled_since = None
-        return self._finish(rec, wallclock.perf_counter() - wall0)
-
-    def _all_settled(self) -> bool:
-        living = np.flatnonzero(self.alive)
-        pos = self.dynamics.positions[living]
-        speed = np.linalg.norm(self.dynamics.velocities[living], axis=1)
-        return bool(np.all(inside_mask(self.mission.shape, pos) & (speed < SETTLE_SPEED)))
+                # Never stop before a scheduled shape change, removal or fault.
+                if settle.held(t) and not (pending_shapes or pending_removals
+                                           or pending_events):
+                    break
+        return self._finish(rec, wallclock.perf_counter() - wall0, settle, separation)
 
     def _record(self, t: float, rec: dict[str, list]) -> None:
         snaps = [b.snapshot() if b is not None else None for b in self.brains]
@@ -297,16 +296,16 @@ class HeadlessSwarm:
         rec['alive'].append(self.alive.copy())
         rec['goal_ids'].append(np.array([s.goal_id if s else -1 for s in snaps]))
         rec['digests'].append(np.array([s.assignment_digest if s else 0 for s in snaps]))
+        rec['localized'].append(np.array([bool(s and s.localized) for s in snaps]))
 
-    def _finish(self, rec: dict[str, list], wall_s: float) -> TrialRecord:
+    def _finish(self, rec: dict[str, list], wall_s: float, settle: SettleTracker,
+                separation: SeparationTracker) -> TrialRecord:
         arrays = {k: np.asarray(v) for k, v in rec.items()}
-        shape = self.mission.shape
         radii = {t: r.coverage_radius for t, r in self.types.items()}
-        metrics = run_metrics(arrays['times'], arrays['positions'], arrays['velocities'],
-                              self.robot_types, shape, radii, alive=arrays['alive'])
-        metrics.update(belief_metrics(arrays, self.robot_types, self.is_beacon))
-        metrics.update(change_metrics(arrays['times'], arrays['positions'], arrays['alive'],
-                                      self.shapes))
+        metrics = trial_metrics(arrays, self.robot_types, self.is_beacon, self.mission.shape,
+                                radii, settling=settle.result(),
+                                separation=separation.result(), shapes=self.shapes)
+        metrics['outcome'] = 'settled' if metrics['settled'] else 'not settled'
         metrics['wall_seconds'] = wall_s
         metrics['real_time_factor'] = float(arrays['times'][-1] / max(wall_s, 1e-9))
         metrics['medium'] = dict(vars(self.medium.stats)) if hasattr(

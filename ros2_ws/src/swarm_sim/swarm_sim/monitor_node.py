@@ -3,8 +3,10 @@
 Subscribes ``/swarm/truth`` (swarm_msgs/SwarmTruth), ``/swarm/shape``,
 ``/swarm/goals`` and every ``/agent_K/state`` (swarm_msgs/AgentState), and keeps a
 2 Hz record of truth and belief: true positions and velocities, estimated positions,
-modes, assigned goals and assignment digests. ``scripts/launch_swarm.py`` runs it
-inside the launcher process and turns the record into ``metrics.json`` and figures.
+modes, assigned goals and assignment digests. At every truth message it checks the
+settled condition of eq. 4.1 (``settle``, a ``swarm_sim.metrics.SettleTracker``; a new
+shape or goal list is a change). ``scripts/launch_swarm.py`` runs it inside the
+launcher process and turns the record into ``metrics.json`` and figures.
 """
 
 from __future__ import annotations
@@ -25,13 +27,14 @@ from swarm_mission import qos
 from swarm_mission.conversions import goals_from_msg, shape_from_msg
 from swarm_mission.shapes import ShapeError
 from swarm_msgs.msg import AgentState, FormationShape, GoalArray, SwarmTruth
-from swarm_sim.metrics import inside_mask, SETTLE_SPEED
+from swarm_sim.metrics import inside_mask, SETTLE_HOLD_S, SETTLE_SPEED, settled_now, SettleTracker
 
 
 class MonitorNode(Node):
     """Collects truth and agent states; see the module docstring."""
 
-    def __init__(self, agent_ids: list[int] | None = None, **kwargs) -> None:
+    def __init__(self, agent_ids: list[int] | None = None,
+                 settle_hold_s: float = SETTLE_HOLD_S, **kwargs) -> None:
         super().__init__('swarm_monitor', **kwargs)
         self.declare_parameter('agent_ids', list(agent_ids or [0]),
                                ParameterDescriptor(description='Agent ids to watch'))
@@ -53,6 +56,7 @@ class MonitorNode(Node):
             'digests', 'rounds')}
         self._last_record = -1e9
         self.rounds_seen: set[int] = set()
+        self.settle = SettleTracker(settle_hold_s)
         state_qos = QoSProfile(**qos.STATE)
         self.create_subscription(SwarmTruth, '/swarm/truth', self._on_truth, state_qos)
         self.create_subscription(FormationShape, '/swarm/shape', self._on_shape,
@@ -75,11 +79,13 @@ class MonitorNode(Node):
         with self.lock:
             self.shape = shape
             self.shapes.append((self._truth_time(), shape))
+            self.settle.change(self._truth_time())
 
     def _on_goals(self, msg: GoalArray) -> None:
         with self.lock:
             self.goals = goals_from_msg(msg)
             self.goal_version = msg.version
+            self.settle.change(self._truth_time())
 
     def _on_state(self, msg: AgentState) -> None:
         i = self.index.get(int(msg.id))
@@ -88,6 +94,12 @@ class MonitorNode(Node):
                 self.states[i] = msg
                 if msg.assignment_round:
                     self.rounds_seen.add(int(msg.assignment_round))
+
+    def change(self, t: float) -> None:
+        """A commanded change at sim time ``t`` (a fault, a setting): the settled streak
+        ends without counting a re-departure (SettleTracker.change)."""
+        with self.lock:
+            self.settle.change(t)
 
     def _truth_time(self) -> float:
         if self.truth is None:
@@ -98,9 +110,6 @@ class MonitorNode(Node):
         with self.lock:
             self.truth = msg
             t = self._truth_time()
-            if t - self._last_record < self.period - 1e-6:
-                return
-            self._last_record = t
             n = len(self.agent_ids)
             pos = np.full((n, 2), np.nan)
             vel = np.zeros((n, 2))
@@ -111,6 +120,11 @@ class MonitorNode(Node):
                     pos[i] = a.position
                     vel[i] = a.velocity
                     alive[i] = a.alive
+            self.settle.update(t, self.shape is not None and alive.any()
+                               and settled_now(self.shape, pos, vel, alive))
+            if t - self._last_record < self.period - 1e-6:
+                return
+            self._last_record = t
             est = np.array([s.position if s is not None else (np.nan, np.nan)
                             for s in self.states], dtype=float)
             r = self.record
@@ -159,6 +173,7 @@ class MonitorNode(Node):
                 'lost': sum(1 for s in states if s.mode == AgentState.MODE_LOST),
                 'return_home': sum(1 for s in states if s.mode == AgentState.MODE_RETURN_HOME),
                 'goal_version': self.goal_version,
+                'settle_held': self.settle.held(self._truth_time()),
             }
 
 

@@ -10,19 +10,23 @@ import numpy as np
 
 from swarm_mission.robot_types import load_robot_types
 from swarm_sim import plots
-from swarm_sim.metrics import belief_metrics, change_metrics, run_metrics
+from swarm_sim.metrics import SETTLE_HOLD_S, trial_metrics
 
 
 def run_report(out: pathlib.Path, record: Mapping[str, np.ndarray], types: Sequence[int],
                is_beacon: Sequence[bool], shapes: Sequence, goals: Sequence,
                extra: Mapping | None = None, figures: bool = True,
-               shape_times: Sequence[float] | None = None) -> dict:
-    """Compute every metric of a run, draw its figures into ``out``, return the metrics.
+               shape_times: Sequence[float] | None = None,
+               settling: Mapping | None = None, separation: Mapping | None = None,
+               settle_hold_s: float = SETTLE_HOLD_S) -> dict:
+    """Compute every metric of a run (``swarm_sim.metrics.trial_metrics``), draw its
+    figures into ``out``, return the metrics.
 
     ``record`` holds ``times`` (T,), ``positions``/``velocities``/``estimates`` (T, N, 2),
     ``alive``/``modes``/``goal_ids``/``digests`` (T, N). ``shapes`` are the shapes the run
     used in order; metrics are taken against the last one. With ``shape_times`` (when
     each shape was applied, on the record's clock) the shape-change metrics are added.
+    ``settling`` and ``separation`` are the run's trackers' results (see trial_metrics).
     """
     out = pathlib.Path(out)
     types = np.asarray(types)
@@ -35,12 +39,10 @@ def run_report(out: pathlib.Path, record: Mapping[str, np.ndarray], types: Seque
         return metrics
     positions = np.nan_to_num(np.asarray(record['positions']), nan=0.0)
     shape = shapes[-1]
-    metrics.update(run_metrics(times, positions, np.asarray(record['velocities']), types,
-                               shape, radii, alive=np.asarray(record['alive'])))
-    metrics.update(belief_metrics(record, types, is_beacon))
-    if shape_times is not None:
-        metrics.update(change_metrics(times, positions, np.asarray(record['alive']),
-                                      list(zip(shape_times, shapes))))
+    metrics.update(trial_metrics(
+        record, types, is_beacon, shape, radii, settling=settling, separation=separation,
+        settle_hold_s=settle_hold_s,
+        shapes=list(zip(shape_times, shapes)) if shape_times is not None else ()))
     metrics['real_time_factor'] = metrics.get('real_time_factor') or (
         float(times[-1] - times[0]) / metrics['wall_seconds']
         if metrics.get('wall_seconds') else None)

@@ -107,6 +107,7 @@ from swarm_msgs.msg import (
 from swarm_sim.fleet import FleetError, load_fleet, place_fleet, PLACEMENT_STD_M
 from swarm_sim.markers import swarm_markers
 from swarm_sim.medium import MediumConfig, RadioMedium, RUNTIME_SETTINGS, SweepingWall
+from swarm_sim.metrics import SeparationTracker
 from swarm_sim.sensors import GpsModel, ImuModel, ProximityModel
 
 PARAMETERS = {
@@ -148,7 +149,8 @@ PARAMETERS = {
     'half_size': (50.0, 'Workspace half width (m)'),
     'terrain': ('rough', 'pybullet terrain: rough or flat'),
     'seed': (0, 'Seed of the noise generators and the terrain'),
-    'record_dir': ('', 'Folder for the run record (truth.csv, medium.json); empty: none'),
+    'record_dir': ('', 'Folder for the run record (truth.csv, medium.json, separation.json); '
+                       'empty: none'),
     'gui': (False, 'pybullet GUI (needs a display)'),
 }
 
@@ -271,6 +273,10 @@ class SimNode(Node):
                                       'marker')}
         self._rx_batches: dict[int, list[tuple[float, Packet]]] = {}
         self._rx_grouped: list[tuple[float, Packet, list[int]]] = []
+        # Closest approach of coverage circles at every physics step, and its minimum per
+        # truth interval (written to record_dir/separation.json on close).
+        self.separation = SeparationTracker()
+        self._separation_series: tuple[list[float], list[float]] = ([], [])
         self._record = None
         if p['record_dir']:
             path = pathlib.Path(p['record_dir'])
@@ -580,6 +586,7 @@ class SimNode(Node):
         self.backend.step(self.dt, forces)
         self.step_count += 1
         self.t = self.step_count * self.dt
+        self.separation.update(self.backend.positions(), self.radii, self.alive)
         if self.step_count % max(1, int(round(0.05 / self.dt))) == 0:
             living = np.flatnonzero(self.alive)
             self.medium.move_wall(self.t)
@@ -683,6 +690,8 @@ class SimNode(Node):
             self.batch_pub.publish(sensor_batch_to_msg(stamp, **batch))
         if self._due_now('truth', 'truth_rate_hz'):
             self._publish_truth(stamp, pos)
+            self._separation_series[0].append(self.t)
+            self._separation_series[1].append(self.separation.take_interval_min())
         if self.params['marker_rate_hz'] > 0 and self._due_now('marker', 'marker_rate_hz'):
             self._publish_markers(stamp, pos)
 
@@ -733,6 +742,12 @@ class SimNode(Node):
             self._record.close()
             out = pathlib.Path(self.params['record_dir']) / 'medium.json'
             out.write_text(json.dumps(vars(self.medium.stats), indent=2), encoding='utf-8')
+            # Body contacts: pybullet's robot-robot contact pairs (None: point masses).
+            times, mins = self._separation_series
+            (out.parent / 'separation.json').write_text(json.dumps(
+                {**self.separation.result(),
+                 'body_contacts': getattr(self.backend, 'body_contacts', None),
+                 'series': {'times': times, 'min': mins}}), encoding='utf-8')
             self._record = None
         self.backend.close()
 

@@ -165,6 +165,10 @@ class PybulletBackend:
         self.rejected_forces = 0
         self.physics_wall_s = 0.0     # wall time inside Bullet's stepSimulation
         self.clipped_forces = 0
+        # Robot pairs whose bodies began to touch, counted after every Bullet step (a pair
+        # that stays in contact counts once); the pairs touching after the last step.
+        self.body_contacts = 0
+        self._touching: set[tuple[int, int]] = set()
         self.alive = np.ones(self.n, dtype=bool)
         self._cid = pb.connect(pb.GUI if gui else pb.DIRECT)
         if self._cid < 0:
@@ -403,6 +407,7 @@ class PybulletBackend:
                               activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING,
                               physicsClientId=cid)
             self._bodies.append(body)
+        self._robot_of_body = {body: k for k, body in enumerate(self._bodies)}
         self._pos = np.column_stack([[r.x for r in self.fleet], [r.y for r in self.fleet], z0])
         self._quat = np.array([_quat_yaw(r.yaw) for r in self.fleet])
         self._vel = np.zeros((self.n, 3))
@@ -467,9 +472,21 @@ class PybulletBackend:
             t0 = clock()
             stepsim(cid)
             self.physics_wall_s += clock() - t0
+            self._count_body_contacts()
             self.steps += 1
             self.time += h
         self._poses_stale = self._vels_stale = True
+
+    def _count_body_contacts(self) -> None:
+        """Add the robot pairs in contact now that were not after the last step."""
+        robot = self._robot_of_body
+        touching = set()
+        for c in pb.getContactPoints(physicsClientId=self._cid):
+            a, b = robot.get(c[1]), robot.get(c[2])
+            if a is not None and b is not None:
+                touching.add((a, b) if a < b else (b, a))
+        self.body_contacts += len(touching - self._touching)
+        self._touching = touching
 
     def _read_poses(self) -> None:
         """Read every living body's pose, once per step at most (positions, yaws, tilts)."""
