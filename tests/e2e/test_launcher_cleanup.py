@@ -42,21 +42,34 @@ def _alive(pids: set[int]) -> set[int]:
     return alive
 
 
-def _start(processes, out: pathlib.Path) -> tuple[subprocess.Popen, set[int]]:
-    """A per-process 4-agent run; returns once its processes (sim, mission, the fork
-    server and the 4 agents it forks) are all started."""
+def _start(processes, out: pathlib.Path, until: int = 7) -> tuple[subprocess.Popen, set[int]]:
+    """A per-process 4-agent run; returns once ``until`` of its processes have started
+    (all 7: sim, mission, the fork server and the 4 agents it forks)."""
     proc = processes.python(str(LAUNCH), '--agents', '4', '--beacons', '3',
                             '--shape', str(SHAPE), '--half-size', '15', '--duration', '600',
                             '--out', str(out), stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 60.0
     kids: set[int] = set()
-    while time.monotonic() < deadline and len(kids) < 7:
-        time.sleep(0.5)
+    while time.monotonic() < deadline and len(kids) < until:
+        time.sleep(0.05)
         assert proc.poll() is None, 'the launcher stopped early'
         kids = _descendants(proc.pid)
-    assert len(kids) >= 7, f'only {len(kids)} processes started'
+    assert len(kids) >= until, f'only {len(kids)} processes started'
     return proc, kids
+
+
+def _holding_files_in(folder: pathlib.Path) -> set[int]:
+    """Processes with a file open below ``folder``: every node keeps its log there, so
+    this finds an agent forked after its launcher died, which no process tree shows."""
+    found = set()
+    for fd_dir in pathlib.Path('/proc').glob('[0-9]*/fd'):
+        try:
+            if any(os.readlink(fd).startswith(str(folder)) for fd in fd_dir.iterdir()):
+                found.add(int(fd_dir.parent.name))
+        except OSError:
+            continue
+    return found
 
 
 def _wait_gone(pids: set[int], timeout: float = 15.0) -> set[int]:
@@ -66,14 +79,20 @@ def _wait_gone(pids: set[int], timeout: float = 15.0) -> set[int]:
     return _alive(pids)
 
 
-def test_sigkilled_launcher_leaves_no_node(processes, tmp_path):
+@pytest.mark.parametrize('until', [3, 5, 7])
+def test_sigkilled_launcher_leaves_no_node(processes, tmp_path, until):
     """SIGKILL cannot be caught: the nodes (each in its own session, out of reach of the
-    launcher's process group) must still go (PR_SET_PDEATHSIG). A benchmark that killed
-    an overrunning launcher once left 100 agent processes running for 20 minutes."""
-    proc, kids = _start(processes, tmp_path / 'kill')
+    launcher's process group) must still go (PR_SET_PDEATHSIG), and so must the fork
+    server and its resource tracker, however far the start had come: killed while the
+    fork server imports (3, 5 processes), fork requests still queued then must not start
+    agents that nothing stops."""
+    out = tmp_path / 'kill'
+    proc, kids = _start(processes, out, until)
     proc.kill()
     proc.wait(timeout=5)
-    assert not _wait_gone(kids), 'orphaned nodes'
+    assert not _wait_gone(kids, timeout=30.0), 'orphaned nodes'
+    time.sleep(2.0)      # a queued fork request would have started its agent by now
+    assert not _wait_gone(_holding_files_in(out), timeout=15.0), 'agents started orphaned'
 
 
 def test_sigterm_stops_the_run_like_ctrl_c(processes, tmp_path):

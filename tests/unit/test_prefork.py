@@ -42,3 +42,19 @@ def test_exit_codes_timeouts_and_signals_look_like_popen(server, tmp_path):
     assert sleeper.poll() is None
     os.killpg(sleeper.pid, signal.SIGKILL)     # its own process group, as the launcher's
     assert sleeper.wait(timeout=30) == -signal.SIGKILL
+
+
+def test_die_with_a_process_already_gone_dies_at_once():
+    """A child told to die with a launcher that has already exited must not live on
+    (a fork request queued when the launcher was SIGKILLed)."""
+    gone = subprocess.Popen(['true'])
+    gone.wait()
+    pid = os.fork()
+    if pid == 0:                       # the child: die_with must kill it right here
+        try:
+            from swarm_agent.prefork import die_with
+            die_with(gone.pid)
+        finally:
+            os._exit(0)
+    _, status = os.waitpid(pid, 0)
+    assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL

@@ -32,6 +32,7 @@ import sys
 import threading
 
 PR_SET_PDEATHSIG = 1   # linux/prctl.h
+LAUNCHER_ENV = 'SWARM_PREFORK_LAUNCHER'   # pid of the process that owns the fork server
 
 
 def die_with_parent() -> None:
@@ -52,9 +53,14 @@ def die_with_parent() -> None:
 
 def die_with(pid: int) -> None:
     """SIGKILL this process when process ``pid`` exits, whoever its parent is (Linux
-    pidfd: a daemon thread blocks on it; elsewhere a no-op)."""
+    pidfd: a daemon thread blocks on it; elsewhere a no-op). If ``pid`` is already gone
+    this process dies at once: a fork request still queued at the fork server when the
+    launcher was killed otherwise starts an agent that nothing ever stops."""
     try:
         fd = os.pidfd_open(pid)
+    except ProcessLookupError:
+        os.kill(os.getpid(), signal.SIGKILL)
+        return
     except (AttributeError, OSError):
         return
 
@@ -65,6 +71,14 @@ def die_with(pid: int) -> None:
     threading.Thread(target=watch, name=f'die-with-{pid}', daemon=True).start()
 
 
+def guard_fork_server() -> None:
+    """In the fork server (imported first by its ``preload``): die with the launcher
+    that started it. The server otherwise outlives a SIGKILLed launcher for as long as
+    its slowest import, or forever if a child holds its liveness pipe."""
+    if os.environ.get(LAUNCHER_ENV) == str(os.getppid()):
+        die_with(os.getppid())
+
+
 def run_node(module: str, argv: Sequence[str], log_path: str, env: Mapping[str, str],
              cwd: str, launcher_pid: int) -> None:
     """In the forked child: a session of its own, stdout and stderr to ``log_path``, the
@@ -72,8 +86,11 @@ def run_node(module: str, argv: Sequence[str], log_path: str, env: Mapping[str, 
     server, and with the launcher (``launcher_pid``): multiprocessing keeps the fork
     server alive as long as any of its children is, so dying with the parent alone would
     leave both running after a SIGKILL of the launcher."""
+    parent = os.getppid()
     os.setsid()
     die_with_parent()
+    if os.getppid() != parent:      # the fork server died before the line above
+        os.kill(os.getpid(), signal.SIGKILL)
     die_with(launcher_pid)
     fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
     os.dup2(fd, 1)
@@ -116,7 +133,8 @@ class ForkServer:
 
     def __init__(self, preload: Sequence[str]) -> None:
         self._context = multiprocessing.get_context('forkserver')
-        self._context.set_forkserver_preload(list(preload))
+        os.environ[LAUNCHER_ENV] = str(os.getpid())
+        self._context.set_forkserver_preload(['swarm_agent.prefork_guard', *preload])
 
     def start(self, name: str, module: str, argv: Sequence[str], log_path: str,
               env: Mapping[str, str], cwd: str) -> ForkedProcess:
