@@ -25,10 +25,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 LAUNCH = ROOT / 'scripts' / 'launch_swarm.py'
 SHAPE = ROOT / 'tests' / 'data' / 'square_8m.json'
 
-# Rerun once: the run is physical and stochastic (ROS timing is not seeded). Agents
-# used to drive off after their own estimate now and then (one run in five; fixed by
-# the zero-velocity update of parked robots: 10 of 10 settled since, see README).
-pytestmark = [pytest.mark.e2e, pytest.mark.slow, pytest.mark.flaky(reruns=1)]
+pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
 
 def _launch(processes, out: pathlib.Path, *extra: str, timeout: float = 1200.0) -> dict:

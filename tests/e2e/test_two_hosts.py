@@ -33,10 +33,7 @@ PROBE = pathlib.Path(__file__).resolve().parent / 'ros_probe.py'
 SHAPE = ROOT / 'tests' / 'data' / 'square_8m.json'
 AGENTS, SPLIT = 8, 4
 
-# Rerun like the single-host e2e test: an occasional agent filter divergence through ROS
-# is a known limit (README); the harness itself is deterministic.
-pytestmark = [pytest.mark.e2e, pytest.mark.slow, pytest.mark.timeout(600),
-              pytest.mark.flaky(reruns=2)]
+pytestmark = [pytest.mark.e2e, pytest.mark.slow, pytest.mark.timeout(600)]
 
 
 @pytest.fixture
