@@ -47,7 +47,6 @@ the others' addresses there.
 from __future__ import annotations
 
 import argparse
-import faulthandler
 import json
 import os
 import pathlib
@@ -57,6 +56,7 @@ import subprocess
 import sys
 import threading
 import time
+from typing import NoReturn
 
 import numpy as np
 
@@ -840,26 +840,23 @@ def main(argv: list[str] | None = None) -> int:
         print('launch_swarm: --set-sim not applied: ' + '; '.join(
             f'{e["name"]}={e["value"]:g} at {e["time"]:g} s ({e["reason"]})' for e in failed),
             file=sys.stderr)
-    close_ros_or_exit(lambda: (monitor.destroy_node(), rclpy.try_shutdown()))
-    return 1 if crashed or (failed and outcome != 'interrupted') else 0
+    exit_without_ros_teardown(1 if crashed or (failed and outcome != 'interrupted') else 0)
 
 
-def close_ros_or_exit(close, seconds: float = 10.0) -> None:
-    """Run the launcher's ROS teardown after the report is written; if it has not
-    returned after ``seconds``, end the process (exit code 1).
+def exit_without_ros_teardown(code: int) -> NoReturn:
+    """End the launcher with ``code`` once every child is stopped and every result is
+    written, skipping rclpy's teardown of the monitor node.
 
-    The teardown has blocked forever with every child already stopped: rclpy's shutdown
-    in rcl_logging_fini (a 50-agent run), and destroying a publisher of the monitor node
-    (50 and 100 agents, one process per agent; py-spy: in Publisher.destroy). That call
-    holds the GIL, so no Python thread, timer or signal handler runs again (a thread
-    given 10 s to finish it left the launcher hanging for good); faulthandler's watchdog
-    is a C thread.
+    That teardown has blocked forever with every child already stopped, holding the GIL
+    (so no Python timer or thread can end it): destroying a publisher of the monitor
+    (50 agents, one process per agent; py-spy: in Publisher.destroy) and rclpy's
+    shutdown in rcl_logging_fini. All it would still do is release this process's DDS
+    participant, which the kernel does at exit; the participant's /dev/shm files are
+    removed by the next run's ``clean_stale_segments``.
     """
-    faulthandler.dump_traceback_later(seconds, exit=True)
-    try:
-        close()
-    finally:
-        faulthandler.cancel_dump_traceback_later()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
 
 
 if __name__ == '__main__':
