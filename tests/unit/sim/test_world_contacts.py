@@ -35,6 +35,7 @@ def test_robots_driven_into_each_other_touch_once_per_approach():
             for _ in range(int(round(seconds / DT))):
                 world.step(DT, force)
                 tracker.update(world.positions(), radii)
+                world.count_body_contacts(tracker.overlapping_pairs())
             gap = np.linalg.norm(np.diff(world.positions(), axis=0))
             if direction > 0:
                 assert gap < 2 * rtype.coverage_radius          # pressed together

@@ -164,11 +164,13 @@ class SeparationTracker:
         self.steps = 0
         self._interval_min = math.inf
         self._overlapping = np.zeros(0, dtype=np.int64)   # pair keys i * N + j, i < j
+        self._n = 0
 
     def update(self, positions: np.ndarray, radii: np.ndarray,
                alive: np.ndarray | None = None) -> None:
         """Measure one step."""
         self.steps += 1
+        self._n = len(positions)
         idx = np.arange(len(positions)) if alive is None else np.flatnonzero(alive)
         if len(idx) < 2:
             self._overlapping = np.zeros(0, dtype=np.int64)
@@ -193,6 +195,11 @@ class SeparationTracker:
         keys = np.minimum(i, j) * len(positions) + np.maximum(i, j)
         self.contacts += int(np.count_nonzero(~np.isin(keys, self._overlapping)))
         self._overlapping = keys
+
+    def overlapping_pairs(self) -> list[tuple[int, int]]:
+        """The (i, j) index pairs, i < j, whose circles overlapped at the last update."""
+        n = max(self._n, 1)
+        return [(int(k) // n, int(k) % n) for k in self._overlapping]
 
     def take_interval_min(self) -> float:
         """The smallest ratio since the last call (inf: no pair within reach)."""

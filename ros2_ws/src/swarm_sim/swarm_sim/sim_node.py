@@ -587,6 +587,8 @@ class SimNode(Node):
         self.step_count += 1
         self.t = self.step_count * self.dt
         self.separation.update(self.backend.positions(), self.radii, self.alive)
+        if hasattr(self.backend, 'count_body_contacts'):
+            self.backend.count_body_contacts(self.separation.overlapping_pairs())
         if self.step_count % max(1, int(round(0.05 / self.dt))) == 0:
             living = np.flatnonzero(self.alive)
             self.medium.move_wall(self.t)

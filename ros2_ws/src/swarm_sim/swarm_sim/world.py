@@ -79,7 +79,7 @@ DIRECT mode (no window) by default; ``gui=True`` opens pybullet's viewer.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 import math
 import time
 
@@ -165,8 +165,8 @@ class PybulletBackend:
         self.rejected_forces = 0
         self.physics_wall_s = 0.0     # wall time inside Bullet's stepSimulation
         self.clipped_forces = 0
-        # Robot pairs whose bodies began to touch, counted after every Bullet step (a pair
-        # that stays in contact counts once); the pairs touching after the last step.
+        # Robot pairs whose bodies began to touch (count_body_contacts; a pair that stays
+        # in contact counts once); the pairs touching at the last count.
         self.body_contacts = 0
         self._touching: set[tuple[int, int]] = set()
         self.alive = np.ones(self.n, dtype=bool)
@@ -407,7 +407,6 @@ class PybulletBackend:
                               activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING,
                               physicsClientId=cid)
             self._bodies.append(body)
-        self._robot_of_body = {body: k for k, body in enumerate(self._bodies)}
         self._pos = np.column_stack([[r.x for r in self.fleet], [r.y for r in self.fleet], z0])
         self._quat = np.array([_quat_yaw(r.yaw) for r in self.fleet])
         self._vel = np.zeros((self.n, 3))
@@ -472,21 +471,27 @@ class PybulletBackend:
             t0 = clock()
             stepsim(cid)
             self.physics_wall_s += clock() - t0
-            self._count_body_contacts()
             self.steps += 1
             self.time += h
         self._poses_stale = self._vels_stale = True
 
-    def _count_body_contacts(self) -> None:
-        """Add the robot pairs in contact now that were not after the last step."""
-        robot = self._robot_of_body
+    def count_body_contacts(self, pairs: Iterable[tuple[int, int]]) -> int:
+        """Of the robot pairs (fleet indices) given, how many bodies touch now; pairs that
+        did not at the last count add to ``body_contacts``.
+
+        A body lies within its coverage circle, so only pairs whose circles overlap can
+        touch: give those (``SeparationTracker.overlapping_pairs``), after every step.
+        Asking Bullet for all contact points instead costs 0.6 ms a step with 50 robots
+        (their ground contacts), a sixth of the step.
+        """
         touching = set()
-        for c in pb.getContactPoints(physicsClientId=self._cid):
-            a, b = robot.get(c[1]), robot.get(c[2])
-            if a is not None and b is not None:
-                touching.add((a, b) if a < b else (b, a))
+        for i, j in pairs:
+            if self.alive[i] and self.alive[j] and pb.getContactPoints(
+                    self._bodies[i], self._bodies[j], physicsClientId=self._cid):
+                touching.add((i, j) if i < j else (j, i))
         self.body_contacts += len(touching - self._touching)
         self._touching = touching
+        return len(touching)
 
     def _read_poses(self) -> None:
         """Read every living body's pose, once per step at most (positions, yaws, tilts)."""
