@@ -6,12 +6,20 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
+import pytest
 import shape_study
 from shapely.geometry import box
 
 from swarm_mission.shape_gen import generate, shape_json
 from swarm_mission.shapes import load_shape, shape_from_polygon
-from swarm_sim.shape_study import markdown_table, row_metrics, run_trial, StudyTrial
+from swarm_sim.shape_study import (
+    bearing_spread,
+    markdown_table,
+    row_metrics,
+    run_trial,
+    StudyTrial,
+)
 
 
 def test_a_tiny_study_writes_one_row_per_shape_and_method(tmp_path):
@@ -29,6 +37,11 @@ def test_a_tiny_study_writes_one_row_per_shape_and_method(tmp_path):
         # 8 s cannot settle a swarm scattered over +/-50 m: reported, with the agents.
         assert all(r['status'] == 'not settled' and r['diagnosis']['unsettled_agents']
                    for r in per_shape['rows'])
+        for r in per_shape['rows']:
+            # The diagnosis's path is the metric's total displacement (nobody died).
+            assert r['diagnosis']['detours']['path_m'] == pytest.approx(
+                r['metrics']['total_displacement'])
+            assert r['diagnosis']['last_to_settle'] is None     # nobody settled for good
         table = (out / f'{name}.md').read_text().splitlines()
         rows = [line for line in table if line.startswith(f'| {name} |')]
         assert len(rows) == 2 and all('| not settled |' in line for line in rows)
@@ -71,3 +84,13 @@ def test_missing_metric_keys_show_as_dashes():
     cells = row_metrics(new)
     assert (cells['settled'], cells['settling_ratio'], cells['contacts']) == (True, 1.5, 0)
     assert cells['min_separation_ratio'] == math.inf
+
+
+def test_bearing_spread_is_the_smallest_sector_holding_every_beacon():
+    here = np.array([5.0, 5.0])
+    around = here + 10 * np.array([[1, 0], [0, 1], [-1, 0]])            # 0, 90, 180 deg
+    assert bearing_spread(here, around) == pytest.approx(180.0)
+    rad = np.radians([10.0, 20.0, 350.0])
+    huddled = here + 20 * np.column_stack([np.cos(rad), np.sin(rad)])   # across 0 deg
+    assert bearing_spread(here, huddled) == pytest.approx(30.0)
+    assert bearing_spread(here, huddled[:1]) is None

@@ -9,11 +9,14 @@ from ``swarm_sim.metrics`` keys (a key a run does not report shows as ``-``). A 
 the swarm cannot cover (``swarm_mission.coverability``) is a row with the reason; a
 trial that raises is a row with the error; none is dropped.
 
-A trial that did not settle carries a diagnosis (``diagnose``): every agent not settled
-at the end (mode, inside or not, speed, distance to its goal, its localization error,
-the beacons in radio range and line of sight of it and of its goal), how many final
-goals have fewer than three beacons in reach (no trilateration there, thesis 3.1.4),
-and when and where the worst localization error occurred.
+Every trial carries a diagnosis (``diagnose``): every agent not settled at the end
+(mode, inside or not, speed, distance to its goal, its localization error, the beacons
+in radio range and line of sight of it and of its goal); how many final goals have
+fewer than three beacons in reach (no trilateration there, thesis 3.1.4); when and
+where the worst localization error occurred (beacons in reach, their bearing spread,
+time spent without a fix before); the agent that settled last (its path against the
+straight line, time without a fix, goal changes); and where the displacement beyond
+the straight lines went (path driven without a fix, the longest detours).
 """
 
 from __future__ import annotations
@@ -101,17 +104,105 @@ def row_metrics(metrics: Mapping) -> dict:
 
 
 def _beacons_in_reach(point: np.ndarray, beacons: np.ndarray, range_m: float,
-                      blocked) -> int:
-    """Beacons within radio range and, with obstacles, line of sight of ``point``."""
+                      blocked) -> np.ndarray:
+    """The beacons within radio range and, with obstacles, line of sight of ``point``."""
     near = beacons[np.linalg.norm(beacons - point, axis=1) <= range_m]
-    if blocked is None:
-        return len(near)
-    return sum(not blocked.intersects(LineString([point, b])) for b in near
-               if not np.allclose(b, point))
+    near = near[~np.all(np.isclose(near, point), axis=1)] if len(near) else near
+    if blocked is None or not len(near):
+        return near
+    return near[[not blocked.intersects(LineString([point, b])) for b in near]]
+
+
+def bearing_spread(point: np.ndarray, beacons: np.ndarray) -> float | None:
+    """The smallest angle (degrees) of a sector from ``point`` holding every beacon:
+    near 0 the beacons stand in one direction and a fix is poor across it."""
+    if len(beacons) < 2:
+        return None
+    angles = np.sort(np.degrees(np.arctan2(*(beacons - point).T[::-1])) % 360.0)
+    gaps = np.diff(np.append(angles, angles[0] + 360.0))
+    return float(360.0 - gaps.max())
+
+
+def _mode_name(mode) -> str:
+    return Mode(int(mode)).name if mode >= 0 else 'none'
+
+
+def _worst_localization(record: TrialRecord, range_m: float, blocked) -> dict | None:
+    """When and where the largest error after an agent's first fix occurred, and why:
+    the beacons it could range then, their bearing spread, and how long before it had
+    been without a fix (LOST or RETURN_HOME, thesis 3.1.3)."""
+    pos, alive, modes, beacons = record.positions, record.alive, record.modes, \
+        np.asarray(record.beacons, dtype=bool)
+    err = np.linalg.norm(record.estimates - pos, axis=2)
+    masked = np.where(alive & ~beacons[None, :] & np.isfinite(err), err, -1.0)
+    localized = getattr(record, 'localized', None)
+    first_fix = None
+    if localized is not None and np.shape(localized) == masked.shape:
+        fixed = np.logical_or.accumulate(np.asarray(localized, bool), axis=0)
+        masked = np.where(fixed, masked, -1.0)
+        first_fix = fixed
+    if not masked.size or masked.max() < 0:
+        return None
+    k, i = np.unravel_index(int(np.argmax(masked)), masked.shape)
+    reach = _beacons_in_reach(pos[k, i], pos[k][beacons & alive[k]], range_m, blocked)
+    times = record.times
+    window = (times > times[k] - 60.0) & (times <= times[k])
+    dt = float(np.median(np.diff(times))) if len(times) > 1 else 0.0
+    return {'agent': int(i), 'time': float(times[k]), 'error': float(masked[k, i]),
+            'mode': _mode_name(modes[k, i]), 'beacons_in_reach': len(reach),
+            'bearing_spread_deg': bearing_spread(pos[k, i], reach),
+            'seconds_without_fix_in_last_60s': float(
+                np.count_nonzero(modes[window, i] > 0) * dt),
+            'first_fix_time': (float(times[np.argmax(first_fix[:, i])])
+                               if first_fix is not None and first_fix[:, i].any() else None)}
+
+
+def _detours(record: TrialRecord, limit: int = 3) -> dict:
+    """Where the displacement beyond the straight lines went: path driven while not
+    localized (LOST or RETURN_HOME, which heads for the shape's centre) and the agents
+    with the longest detours (path length over the start-to-final straight line)."""
+    pos, alive, modes = record.positions, record.alive, record.modes
+    steps = np.linalg.norm(np.diff(pos, axis=0), axis=2) * alive[1:]
+    path = steps.sum(axis=0)
+    straight = np.linalg.norm(pos[-1] - pos[0], axis=1)
+    detour = path - straight
+    order = np.argsort(-detour)[:limit]
+    return {'path_m': float(path.sum()), 'straight_m': float(straight.sum()),
+            'path_without_fix_m': float(steps[modes[:-1] > 0].sum()),
+            'longest_detours': [{'agent': int(i), 'type': int(record.types[i]),
+                                 'path_m': float(path[i]), 'straight_m': float(straight[i]),
+                                 'seconds_without_fix': float(np.count_nonzero(
+                                     modes[:, i] > 0) * np.median(np.diff(record.times)))}
+                                for i in order]}
+
+
+def _last_to_settle(record: TrialRecord, shape: Shape) -> dict | None:
+    """The agent whose arrival fixed the settling time: the last one to enter (and
+    stay in) the settled condition of eq. 4.1, with what it did on the way."""
+    ok = inside_mask(shape, record.positions) & (
+        np.linalg.norm(record.velocities, axis=2) < SETTLE_SPEED)
+    ok |= ~record.alive
+    if not ok[-1].all():
+        return None
+    bad = ~ok
+    last_bad = np.array([np.flatnonzero(bad[:, i])[-1] if bad[:, i].any() else -1
+                         for i in range(ok.shape[1])])
+    i = int(np.argmax(last_bad))
+    if last_bad[i] < 0:
+        return None
+    k = last_bad[i] + 1
+    pos, modes = record.positions[:k + 1, i], record.modes[:k + 1, i]
+    dt = float(np.median(np.diff(record.times)))
+    return {'agent': i, 'type': int(record.types[i]), 'time': float(record.times[k]),
+            'beacon': bool(record.beacons[i]),
+            'path_m': float(np.linalg.norm(np.diff(pos, axis=0), axis=1).sum()),
+            'straight_m': float(np.linalg.norm(pos[-1] - pos[0])),
+            'seconds_without_fix': float(np.count_nonzero(modes > 0) * dt),
+            'goal_changes': int(np.count_nonzero(np.diff(record.goal_ids[:k + 1, i])))}
 
 
 def diagnose(record: TrialRecord, shape: Shape, range_m: float | None = None) -> dict:
-    """Why a run did not settle: see the module docstring. Agent k is fleet row k."""
+    """What limited a run: see the module docstring. Agent k is fleet row k."""
     range_m = MediumConfig().range_m if range_m is None else range_m
     blocked = shapely.union_all(list(shape.obstacles)) if shape.obstacles else None
     pos, vel, alive = record.positions, record.velocities, record.alive
@@ -126,35 +217,25 @@ def diagnose(record: TrialRecord, shape: Shape, range_m: float | None = None) ->
     unsettled = []
     for i in np.flatnonzero(alive[-1] & ~(inside & (speed < SETTLE_SPEED))):
         goal = goals.get(int(goal_ids[-1, i]))
-        mode_changes = int(np.count_nonzero(np.diff(modes[:, i][alive[:, i]])))
         unsettled.append({
             'agent': int(i), 'type': int(types[i]), 'beacon': bool(beacons[i]),
-            'mode': Mode(int(modes[-1, i])).name if modes[-1, i] >= 0 else 'none',
-            'mode_changes': mode_changes,
+            'mode': _mode_name(modes[-1, i]),
+            'mode_changes': int(np.count_nonzero(np.diff(modes[:, i][alive[:, i]]))),
             'inside': bool(inside[i]), 'speed': float(speed[i]),
             'goal_distance': None if goal is None else float(np.linalg.norm(pos[-1, i] - goal)),
             'localization_error': _number(err[-1, i]),
-            'beacons_in_reach': _beacons_in_reach(pos[-1, i], final_beacons, range_m, blocked),
-            'beacons_in_reach_of_goal': None if goal is None else _beacons_in_reach(
-                goal, final_beacons, range_m, blocked),
+            'beacons_in_reach': len(_beacons_in_reach(pos[-1, i], final_beacons, range_m,
+                                                      blocked)),
+            'beacons_in_reach_of_goal': None if goal is None else len(_beacons_in_reach(
+                goal, final_beacons, range_m, blocked)),
         })
-    short = [g for g, xy in goals.items()
-             if _beacons_in_reach(xy, final_beacons, range_m, blocked) < TRILATERATION_BEACONS]
-    worst = None
-    masked = np.where(alive & ~beacons[None, :] & np.isfinite(err), err, -1.0)
-    localized = getattr(record, 'localized', None)
-    if localized is not None and np.shape(localized) == masked.shape:
-        masked = np.where(np.logical_or.accumulate(np.asarray(localized, bool), axis=0),
-                          masked, -1.0)
-    if masked.size and masked.max() >= 0:
-        k, i = np.unravel_index(int(np.argmax(masked)), masked.shape)
-        live_beacons = pos[k][beacons & alive[k]]
-        worst = {'agent': int(i), 'time': float(record.times[k]), 'error': float(masked[k, i]),
-                 'mode': Mode(int(modes[k, i])).name if modes[k, i] >= 0 else 'none',
-                 'beacons_in_reach': _beacons_in_reach(pos[k, i], live_beacons, range_m,
-                                                       blocked)}
+    short = [g for g, xy in goals.items() if len(_beacons_in_reach(
+        xy, final_beacons, range_m, blocked)) < TRILATERATION_BEACONS]
     return {'unsettled_agents': unsettled, 'goals_short_of_beacons': len(short),
-            'goals': len(goals), 'worst_localization': worst,
+            'goals': len(goals),
+            'worst_localization': _worst_localization(record, range_m, blocked),
+            'last_to_settle': _last_to_settle(record, shape),
+            'detours': _detours(record),
             'fraction_settled_at_end': float(np.mean((inside & (speed < SETTLE_SPEED))[
                 alive[-1]])) if alive[-1].any() else 0.0}
 
