@@ -21,8 +21,10 @@ default) for each of --methods, and writes into --out:
 
 With --ros-subset K the first K shapes also run through ROS (``scripts/launch_swarm.py``,
 --ros-agents agents and --ros-beacons beacons, bubble packing, composed and
-per-process), one at a time; their rows join the tables with method ``bubble/ros-composed``
-and ``bubble/ros-per-process``.
+per-process), one at a time, each drawn again with the same kind and seed but sized for
+the ROS swarm (shapes/<shape>_ros.json); their rows join the tables with method
+``bubble/ros-composed`` and ``bubble/ros-per-process``, the launcher's output in
+ros/<shape>_<mode>/.
 """
 
 from __future__ import annotations
@@ -109,11 +111,14 @@ def ros_rows(shape, kind: str, shape_file: pathlib.Path, out: pathlib.Path,
         if not metrics_file.exists():
             tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ['no output']
             rows.append(row_from_metrics(shape, kind, method, seed, 'error', {},
-                                         f'launcher exit {proc.returncode}: {tail[0]}'))
+                                         f'{args.ros_agents} agents: launcher exit '
+                                         f'{proc.returncode}: {tail[0]}'))
             continue
         metrics = json.loads(metrics_file.read_text(encoding='utf-8'))['trials'][0]
         settled = metrics.get('settled', metrics.get('settling_time') is not None)
-        note = '' if proc.returncode == 0 else f'launcher exit {proc.returncode}'
+        note = f'{args.ros_agents} agents, {args.ros_beacons} beacons, {shape.area:.0f} m^2'
+        if proc.returncode != 0:
+            note += f'; launcher exit {proc.returncode}'
         rows.append(row_from_metrics(shape, kind, method, seed,
                                      'settled' if settled else 'not settled', metrics, note))
     return rows
@@ -162,9 +167,11 @@ def main(argv: list[str] | None = None) -> int:
                                        'error', {}, f'{type(exc).__name__}: {exc}')
             rows[trial.shape.name].append(row)
             tqdm.write(f'{row["shape"]} {row["method"]}: {row["status"]} {row["note"]}')
-    for i, shape in enumerate(shapes[:args.ros_subset]):
-        rows[shape.name] += ros_rows(shape, kinds[shape.name],
-                                     out / 'shapes' / f'{shape.name}.json', out, args,
+    # The ROS swarm is smaller: the same kinds and seeds, sized for --ros-agents.
+    for i, shape in enumerate(study_shapes(args.ros_subset, args.seed, args.ros_agents)):
+        shape_file = out / 'shapes' / f'{shape.name}_ros.json'
+        shape_file.write_text(json.dumps(shape_json(shape)), encoding='utf-8')
+        rows[shape.name] += ros_rows(shape, kinds[shape.name], shape_file, out, args,
                                      args.seed + i)
     order = {m: k for k, m in enumerate(args.methods)}
     every = []
