@@ -10,7 +10,8 @@ It combines the algorithms of thesis chapter 3 exactly as an agent runs them:
   return-to-home modes of 3.1.3.
 - Formation (3.2): with ``bubble``/``fractal`` goals, the agent computes its cost row
   to the goals of its type (visibility graph + Dijkstra in its free configuration
-  space, 3.2.2.2), floods it tagged with the consensus round (every
+  space, 3.2.2.2; a beacon only to beacon goals and the others only to the rest,
+  ``costs.class_costs``), floods it tagged with the consensus round (every
   ``consensus_period_s``), and at the next round solves the Hungarian assignment over
   the rows of the previous round. Agents holding
   the same rows compute the same assignment; the digest of the rows used is exposed so
@@ -41,7 +42,7 @@ import numpy as np
 import shapely
 
 from swarm_agent.assignment import assign
-from swarm_agent.costs import VisibilityGraph
+from swarm_agent.costs import class_costs, VisibilityGraph
 from swarm_agent.dsdv import DsdvConfig, DsdvRouter
 from swarm_agent.forces import ForceParams, formation_force
 from swarm_agent.free_space import grow_obstacles
@@ -237,7 +238,10 @@ class AgentBrain:
         self._my_goals = sorted((g for g in goals if g.type == self.config.agent_type),
                                 key=lambda g: g.id)
         self._rows.clear()
-        if not any(g.id == self.goal_id for g in self._my_goals):
+        classes = any(g.beacon for g in self._my_goals)
+        if not any(g.id == self.goal_id
+                   and (not classes or g.beacon == self.config.is_beacon)
+                   for g in self._my_goals):
             self.goal_id = -1
 
     def on_imu(self, t: float, accel: np.ndarray) -> None:
@@ -461,7 +465,8 @@ class AgentBrain:
 
     def _report_costs(self, rnd: int) -> None:
         goals = np.array([[g.x, g.y] for g in self._my_goals])
-        costs = self._graph.cost_row(self.localizer.position, goals)
+        costs = class_costs(self._graph.cost_row(self.localizer.position, goals),
+                            [g.beacon for g in self._my_goals], self.config.is_beacon)
         row = CostRow.from_costs(self.config.agent_id, self.config.agent_type,
                                  self.goal_version, rnd, costs)
         self._store_row(row)

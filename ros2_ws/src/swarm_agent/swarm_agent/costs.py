@@ -13,6 +13,10 @@ estimate is off by metres) would see nothing and report every goal unreachable. 
 the agent first leaves its forbidden space the shortest way, to the nearest boundary
 point of that grown obstacle: costs include that escape distance and ``path`` starts
 with it. A goal inside a grown obstacle, or in a region no free path reaches, costs inf.
+
+``class_costs`` keeps beacons on beacon goals: a goal of the other class (a beacon goal
+for a robot without GPS, another goal for a beacon) costs inf in the agent's row, so the
+Hungarian assignment per type pairs beacons with beacon goals unchanged.
 """
 
 from __future__ import annotations
@@ -164,3 +168,16 @@ class VisibilityGraph:
         while pred[chain[-1]] not in (v, -9999) and pred[chain[-1]] >= 0:
             chain.append(int(pred[chain[-1]]))
         return np.vstack([start, self.vertices[chain[::-1]], goal])
+
+
+def class_costs(costs: np.ndarray, goal_beacon: np.ndarray, is_beacon: bool) -> np.ndarray:
+    """``costs`` with the goals of the other class set to inf.
+
+    ``goal_beacon``: per goal, whether it is a beacon goal. When none is (the mission
+    does not know the beacons), the row is returned as it is.
+    """
+    costs = np.asarray(costs, dtype=float)
+    goal_beacon = np.asarray(goal_beacon, dtype=bool)
+    if not goal_beacon.any():
+        return costs
+    return np.where(goal_beacon == bool(is_beacon), costs, np.inf)

@@ -69,14 +69,14 @@ def goals_to_msg(goals: Iterable[Goal], version: int, shape_version: int, method
     msg.method = method
     for g in goals:
         msg.goals.append(GoalState(id=int(g.id), type=int(g.type), x=float(g.x), y=float(g.y),
-                                   radius=float(g.radius)))
+                                   radius=float(g.radius), beacon=bool(g.beacon)))
     return msg
 
 
 def goals_from_msg(msg: GoalArray) -> list[Goal]:
     """swarm_msgs/GoalArray -> goals (non-finite entries dropped)."""
     return [Goal(id=int(g.id), type=int(g.type), x=float(g.x), y=float(g.y),
-                 radius=float(g.radius))
+                 radius=float(g.radius), beacon=bool(g.beacon))
             for g in msg.goals if np.isfinite([g.x, g.y, g.radius]).all()]
 
 

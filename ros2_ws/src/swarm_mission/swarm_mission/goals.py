@@ -27,13 +27,18 @@ class PartitionError(ValueError):
 
 @dataclass(frozen=True)
 class Goal:
-    """One goal state: id, robot type, centre (m, map frame) and coverage radius (m)."""
+    """One goal state: id, robot type, centre (m, map frame) and coverage radius (m).
+
+    ``beacon``: a goal for a position beacon of that type only, chosen so that every
+    goal has beacons to trilaterate against (``swarm_mission.beacon_goals``).
+    """
 
     id: int
     type: int
     x: float
     y: float
     radius: float
+    beacon: bool = False
 
 
 def goal_positions(goals: Sequence[Goal]) -> np.ndarray:
@@ -47,16 +52,19 @@ def goal_radii(goals: Sequence[Goal]) -> np.ndarray:
 
 
 def goals_to_json(goals: Sequence[Goal]) -> dict:
-    """The ``goals.json`` document: ``{"goals": [{"x", "y", "type", "radius", "id"}, ...]}``."""
+    """The ``goals.json`` document: ``{"goals": [{"x", "y", "type", "radius", "id",
+    "beacon"}, ...]}``."""
     return {'goals': [asdict(g) for g in goals]}
 
 
 def goals_from_json(data: dict) -> list[Goal]:
-    """Inverse of :func:`goals_to_json`; ids default to the list position."""
+    """Inverse of :func:`goals_to_json`; ids default to the list position, ``beacon`` to
+    false."""
     try:
         entries = data['goals']
         goals = [Goal(id=int(e.get('id', i)), type=int(e['type']), x=float(e['x']),
-                      y=float(e['y']), radius=float(e['radius']))
+                      y=float(e['y']), radius=float(e['radius']),
+                      beacon=_flag(e.get('beacon', False)))
                  for i, e in enumerate(entries)]
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise GoalError(f'goals document needs {{"goals": [{{"x", "y", "type", "radius"}}, '
@@ -66,6 +74,13 @@ def goals_from_json(data: dict) -> list[Goal]:
             raise GoalError(f'goal {g.id} has a non-finite position or non-positive radius; '
                             'fix the goals file')
     return goals
+
+
+def _flag(value) -> bool:
+    """A JSON boolean; anything else is a ValueError."""
+    if not isinstance(value, bool):
+        raise ValueError(f'beacon must be true or false, got {value!r}')
+    return value
 
 
 HEX_PACKING_DENSITY = np.pi / (2 * np.sqrt(3))   # densest packing of equal disks (0.9069)

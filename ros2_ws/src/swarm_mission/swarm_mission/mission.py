@@ -11,6 +11,9 @@ Pure logic shared by ``mission_node`` and the headless evaluator:
   fresh ids, which the agents must re-assign (the latency the thesis describes).
 - A sequence of ``SequenceStep`` switches shapes at given times (dynamic formations,
   4.3.4); ``morph_sequence`` builds the smooth changes of 4.3.4 from one shape.
+- Given the fleet's beacons, every partition marks beacon goals
+  (``swarm_mission.beacon_goals``) so that each goal has three beacons in radio reach;
+  a shape the beacons cannot serve so is refused with the number of beacons it needs.
 - Agents report liveness (their state messages on ROS, or the brains in the
   evaluator); an agent silent for ``agent_timeout_s`` is declared lost and the shape is
   re-partitioned for the survivors (self-repair).
@@ -28,8 +31,9 @@ import pathlib
 
 import yaml
 
+from swarm_mission.beacon_goals import check_localizable, select_beacon_goals
 from swarm_mission.coverability import check_coverable
-from swarm_mission.goals import Goal
+from swarm_mission.goals import Goal, PartitionError
 from swarm_mission.partition import partition, PartitionResult
 from swarm_mission.shapes import load_shape, Shape, ShapeError
 
@@ -165,8 +169,13 @@ class MissionConfig:
     # bubble packing lie only the largest coverage radius inside the contour.
     formation_margin: float = 0.6
     remesh: str = 'incremental'      # bubble packing on a changed shape: see REMESH
+    radio_range_m: float = 25.0      # thesis 4.1 (swarm_sim MediumConfig.range_m): the
+    #                                  reach of beacons that beacon goals are chosen for
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.radio_range_m) and self.radio_range_m > 0.0):
+            raise ShapeError(f'radio_range_m must be a finite number > 0 m, got '
+                             f'{self.radio_range_m!r} (mission radio_range_m)')
         if self.remesh not in REMESH:
             raise ShapeError(f'remesh must be one of {", ".join(REMESH)}, got '
                              f'{self.remesh!r} (mission remesh)')
@@ -182,6 +191,8 @@ class Mission:
     config: MissionConfig
     agent_types: dict[int, int]              # agent id -> robot type
     radii: dict[int, float]                  # robot type -> coverage radius
+    beacons: set[int] | None = None          # ids of the position beacons (None: unknown,
+    #                                          goals are then not marked for beacons)
     shape: Shape | None = None
     shape_version: int = 0
     goals: list[Goal] = field(default_factory=list)
@@ -202,20 +213,40 @@ class Mission:
             counts[self.agent_types[agent]] = counts.get(self.agent_types[agent], 0) + 1
         return counts
 
+    def beacon_counts(self) -> dict[int, int]:
+        """Robot type -> beacons believed alive (empty when the beacons are unknown)."""
+        counts: dict[int, int] = {}
+        for agent in sorted(self.alive & (self.beacons or set())):
+            counts[self.agent_types[agent]] = counts.get(self.agent_types[agent], 0) + 1
+        return counts
+
     def set_shape(self, shape: Shape) -> bool:
         """Adopt a new shape version and partition it; False if partitioning failed.
 
         A shape the living swarm cannot cover (too small for its coverage discs, walled
         off by obstacles, a neck narrower than a robot) raises ShapeError naming the
-        reason and is not adopted (``coverability.check_coverable``).
+        reason and is not adopted (``coverability.check_coverable``); so is, raising
+        PartitionError, a shape that cannot be partitioned or whose goals the fleet's
+        beacons cannot all serve (``beacon_goals.check_localizable``).
         """
         check_coverable(shape, self.type_counts(), self.radii)
+        before = (self.shape, self.shape_version)
         self.shape = shape
         self.shape_version += 1
-        return self.repartition(reason=f'shape {shape.name} (version {self.shape_version})')
+        try:
+            return self.repartition(reason=f'shape {shape.name} (version '
+                                           f'{self.shape_version})', strict=True)
+        except (PartitionError, ShapeError):
+            self.shape, self.shape_version = before
+            raise
 
-    def repartition(self, reason: str) -> bool:
-        """Partition the current shape for the living agents and bump the goal version."""
+    def repartition(self, reason: str, strict: bool = False) -> bool:
+        """Partition the current shape for the living agents and bump the goal version.
+
+        With the fleet's beacons known, beacon goals are marked; a goal left with fewer
+        than three beacons in reach raises PartitionError when ``strict`` (a new shape)
+        and is logged otherwise (self-repair keeps the survivors going).
+        """
         if self.shape is None:
             return False
         if self.config.method == 'forces':
@@ -232,14 +263,31 @@ class Mission:
             LOG.warning('shape %s partitioned without its %.2f m margin (shrunk, it splits, '
                         'vanishes or is too small for the swarm)', self.shape.name,
                         self.config.formation_margin)
+        goals = self._mark_beacon_goals(list(result.goals), strict)
         self.last_result = result
-        self.goals = list(result.goals)
+        self.goals = goals
         self.goal_version += 1
         self.events.append(
             f'goals v{self.goal_version}: {len(self.goals)} {self.config.method} goals for '
             f'{reason} in {result.seconds:.2f} s')
         LOG.info(self.events[-1])
         return True
+
+    def _mark_beacon_goals(self, goals: list[Goal], strict: bool) -> list[Goal]:
+        """``goals`` with beacon goals marked for the living beacons (as they are when the
+        beacons are unknown)."""
+        if self.beacons is None or not goals:
+            return goals
+        range_m = self.config.radio_range_m
+        plan = select_beacon_goals(goals, self.beacon_counts(), range_m, self.shape.obstacles,
+                                   prefer={g.id for g in self.goals if g.beacon})
+        if plan.uncovered:
+            if strict:
+                check_localizable(plan, self.shape.name, range_m, self.shape.obstacles)
+            self.events.append(f'goals {list(plan.uncovered)} have fewer than '
+                               f'{plan.need} beacons in radio reach')
+            LOG.warning(self.events[-1])
+        return plan.goals
 
     def agent_seen(self, agent_id: int, t: float) -> None:
         """Liveness report of one agent at time ``t``."""

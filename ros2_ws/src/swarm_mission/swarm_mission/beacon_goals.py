@@ -1,0 +1,178 @@
+"""Beacon goals: which goals the position beacons take so that every goal is localizable.
+
+A robot without a position sensor localizes by trilateration against the position
+beacons that are its direct neighbours (thesis 3.1.1): within radio range and line of
+sight, and at least three of them, since fewer give no 2-D fix (3.1.1, n < 3) and the
+robot turns LOST and then RETURN_HOME (3.1.3). The beacons are robots of the swarm and
+take goals like every other robot, so where they park decides which goals can be held:
+on a long shape, a goal far from three beacons is one its robot can never stay on.
+
+``select_beacon_goals`` marks, for each robot type, exactly as many goals as the fleet
+has beacons of that type as *beacon goals* (``Goal.beacon``); the assignment then gives
+beacon goals to beacons only (``swarm_agent.costs.class_costs``). The choice is a greedy
+set multi-cover: every goal that is not a beacon goal needs ``need`` beacon goals within
+``reach * range_m`` and line of sight (a beacon goal's own robot has its GPS); each step
+takes, among the goals of a type with beacons left, the one that covers the most still
+under-covered goals (ties: a goal that was a beacon goal before, so re-meshing keeps
+beacons where they are; then the farthest from the beacon goals chosen so far, which
+spreads the beacons and keeps them off one line; then the lowest id). Once every goal is
+covered ``need`` times the remaining beacons raise the cover level one by one. If goals
+stay under-covered, swaps of a beacon goal for another goal of its type that lower the
+shortfall are tried. ``check_localizable`` refuses a plan that still leaves a goal
+under-covered, with one line naming the number of beacons the shape needs (a greedy
+cover by beacons of any type).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Mapping, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.optimize import Bounds, LinearConstraint, milp
+from scipy.spatial import cKDTree
+import shapely
+from shapely.geometry import Polygon
+
+from swarm_mission.goals import Goal, goal_positions, PartitionError
+
+MIN_BEACONS = 3       # beacons a 2-D trilateration needs (thesis 3.1.1)
+REACH = 0.9           # fraction of the radio range a goal's beacons may be away
+SOLVER_TIME_LIMIT_S = 10.0
+
+
+@dataclass(frozen=True)
+class BeaconPlan:
+    """Goals with their beacon flags set, and the goals still short of beacons.
+
+    ``cover`` holds, per goal (in the order of ``goals``), the number of beacon goals
+    within reach of it; ``uncovered`` the ids of the goals that are not beacon goals and
+    have fewer than ``need`` of them.
+    """
+
+    goals: list[Goal]
+    cover: np.ndarray
+    uncovered: tuple[int, ...]
+    need: int
+
+
+def radio_links(points: np.ndarray, range_m: float,
+                obstacles: Sequence[Polygon] = ()) -> np.ndarray:
+    """(n, n) bool: pairs of ``points`` within ``range_m`` whose segment crosses no obstacle
+    (the link rule of the radio medium, thesis 3.1.2); the diagonal is True."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    n = len(pts)
+    links = np.eye(n, dtype=bool)
+    if n < 2:
+        return links
+    pairs = cKDTree(pts).query_pairs(float(range_m), output_type='ndarray')
+    if not len(pairs):
+        return links
+    solid = [o for o in obstacles if o is not None and not o.is_empty]
+    if solid:
+        lines = shapely.linestrings(np.stack([pts[pairs[:, 0]], pts[pairs[:, 1]]], axis=1))
+        hit = shapely.STRtree(solid).query(lines, predicate='intersects')
+        ok = np.ones(len(pairs), dtype=bool)
+        ok[np.unique(hit[0])] = False
+        pairs = pairs[ok]
+    links[pairs[:, 0], pairs[:, 1]] = True
+    links[pairs[:, 1], pairs[:, 0]] = True
+    return links
+
+
+def _solve(links: np.ndarray, need: int, types: np.ndarray, quota: Mapping[int, int] | None,
+           prefer: np.ndarray) -> np.ndarray:
+    """The beacon goals (bool mask) of the integer programme in the module docstring.
+
+    Variables: x (goal is a beacon goal), y (goal has ``need + 1`` beacons in reach or is
+    a beacon goal), s (beacons a goal lacks, continuous). Cover of goal j:
+    ``sum_i L_ij x_i + need x_j + s_j >= need`` and ``sum_i L_ij x_i + (need + 1) x_j >=
+    (need + 1) y_j``. With ``quota`` each type t has exactly ``quota[t]`` beacon goals and
+    the objective is ``W sum s - sum y - e prefer.x`` (W > n, e < 1 / beacons: shortfall
+    first, then spare cover, then staying put); without it the objective is ``sum x`` under
+    ``s = 0`` (the fewest beacons of any type).
+    """
+    n = len(types)
+    cover = links.T.astype(float)
+    eye = np.eye(n)
+    zeros = np.zeros((n, n))
+    if quota is None:
+        c = np.r_[np.ones(n), np.zeros(n), np.zeros(n)]
+        upper = np.r_[np.ones(n), np.zeros(n), np.zeros(n)]
+    else:
+        beacons = max(1, sum(quota.values()))
+        c = np.r_[-prefer / (2.0 * (beacons + 1)), -np.ones(n), np.full(n, n + 1.0)]
+        upper = np.r_[np.ones(n), np.ones(n), np.full(n, float(need))]
+    constraints = [
+        LinearConstraint(np.hstack([cover + need * eye, zeros, eye]), lb=need),
+        LinearConstraint(np.hstack([cover + (need + 1) * eye, -(need + 1) * eye, zeros]),
+                         lb=0.0),
+    ]
+    if quota is not None:
+        per_type = np.array([np.r_[types == t, np.zeros(2 * n)] for t in sorted(quota)],
+                            dtype=float)
+        counts = np.array([quota[t] for t in sorted(quota)], dtype=float)
+        constraints.append(LinearConstraint(per_type, lb=counts, ub=counts))
+    result = milp(c, constraints=constraints, bounds=Bounds(np.zeros(3 * n), upper),
+                  integrality=np.r_[np.ones(2 * n), np.zeros(n)],
+                  options={'time_limit': SOLVER_TIME_LIMIT_S})
+    if result.x is None:
+        raise PartitionError(f'the beacon goal selection found no solution in '
+                             f'{SOLVER_TIME_LIMIT_S:g} s ({result.message}); use fewer goals')
+    return np.round(result.x[:n]).astype(bool)
+
+
+def select_beacon_goals(goals: Sequence[Goal], beacons: Mapping[int, int], range_m: float,
+                        obstacles: Sequence[Polygon] = (), *, need: int = MIN_BEACONS,
+                        reach: float = REACH, prefer: Collection[int] = ()) -> BeaconPlan:
+    """Mark ``beacons[t]`` goals of each type t as beacon goals (see the module docstring).
+
+    ``beacons``: robot type -> number of beacons of that type (at most its goals);
+    ``range_m``: the radio range, of which ``reach`` is used; ``obstacles``: what blocks
+    line of sight; ``prefer``: ids of the goals that were beacon goals before.
+    """
+    goals = list(goals)
+    if not goals:
+        return BeaconPlan([], np.zeros(0, dtype=int), (), need)
+    types = np.array([g.type for g in goals])
+    links = radio_links(goal_positions(goals), reach * range_m, obstacles)
+    quota = {int(t): int(beacons.get(int(t), 0)) for t in np.unique(types)}
+    for t, count in quota.items():
+        if not 0 <= count <= int(np.sum(types == t)):
+            raise PartitionError(f'{count} beacons of type {t} but {int(np.sum(types == t))} '
+                                 'goals of that type; give each type at most one beacon '
+                                 'per robot')
+    wanted = set(prefer)
+    chosen = _solve(links, need, types, quota,
+                    np.array([g.id in wanted for g in goals], dtype=float))
+    cover = links[chosen].sum(axis=0)
+    uncovered = tuple(g.id for g, c, b in zip(goals, cover, chosen) if not b and c < need)
+    marked = [replace(g, beacon=bool(b)) for g, b in zip(goals, chosen)]
+    return BeaconPlan(marked, cover, uncovered, need)
+
+
+def beacons_needed(goals: Sequence[Goal], range_m: float, obstacles: Sequence[Polygon] = (),
+                   *, need: int = MIN_BEACONS, reach: float = REACH) -> int:
+    """The fewest beacons (of any types) that leave no goal short of ``need`` in reach."""
+    goals = list(goals)
+    if not goals:
+        return 0
+    types = np.array([g.type for g in goals])
+    links = radio_links(goal_positions(goals), reach * range_m, obstacles)
+    return int(_solve(links, need, types, None, np.zeros(len(goals))).sum())
+
+
+def check_localizable(plan: BeaconPlan, shape_name: str, range_m: float,
+                      obstacles: Sequence[Polygon] = (), *, reach: float = REACH) -> None:
+    """PartitionError with one line when ``plan`` leaves a goal short of beacons:
+    ``shape X needs at least K beacons for a R m radio; the fleet has B: use --beacons K``.
+    """
+    if not plan.uncovered:
+        return
+    fleet = sum(1 for g in plan.goals if g.beacon)
+    k = max(beacons_needed(plan.goals, range_m, obstacles, need=plan.need, reach=reach),
+            fleet + 1)
+    raise PartitionError(
+        f'shape {shape_name} needs at least {k} beacons for a {range_m:g} m radio; the fleet '
+        f'has {fleet}: use --beacons {k} ({len(plan.uncovered)} goals would have fewer than '
+        f'{plan.need} beacons within {reach * range_m:g} m)')

@@ -1,0 +1,200 @@
+"""Beacon goals: every goal keeps three beacons in radio reach (swarm_mission.beacon_goals).
+
+A robot without GPS needs three beacons as direct neighbours to trilaterate (thesis
+3.1.1); the radio reaches 25 m with line of sight (4.1), of which 0.9 is used.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from shapely.geometry import box, LineString, Polygon
+
+from swarm_mission.beacon_goals import (
+    beacons_needed,
+    radio_links,
+    REACH,
+    select_beacon_goals,
+)
+from swarm_mission.goals import (
+    Goal,
+    goal_positions,
+    goals_from_json,
+    goals_to_json,
+    PartitionError,
+)
+from swarm_mission.mission import Mission, MissionConfig
+from swarm_mission.partition import partition
+from swarm_mission.robot_types import load_robot_types
+from swarm_mission.shapes import load_shape, Shape
+
+RADII = {t: r.coverage_radius for t, r in load_robot_types().items()}
+RANGE_M = 25.0                                   # thesis 4.1
+# A concave 7-vertex chevron 20 m x 38 m: ends 38 m apart, beyond one radio range.
+CHEVRON = Shape('chevron', Polygon([(0, 0), (10, 8), (20, 0), (20, 30), (10, 38), (0, 30),
+                                    (6, 19)]))
+COUNTS = {1: 6, 2: 6, 3: 4}                      # 16 agents
+
+
+def _beacon_cover(goals: list[Goal], range_m: float = RANGE_M, obstacles=()) -> np.ndarray:
+    """Beacon goals within 0.9 range and line of sight of each goal, from first
+    principles (distances and segment-obstacle intersections)."""
+    pts = goal_positions(goals)
+    beacons = [g for g in goals if g.beacon]
+    out = []
+    for p in pts:
+        n = 0
+        for b in beacons:
+            seg = np.array([p, [b.x, b.y]])
+            near = np.hypot(*(seg[1] - seg[0])) <= REACH * range_m
+            clear = not any(LineString(seg).intersects(o) for o in obstacles) \
+                if np.any(seg[0] != seg[1]) else True
+            n += near and clear
+        out.append(n)
+    return np.array(out)
+
+
+@pytest.mark.parametrize('beacons', [{1: 2, 2: 1, 3: 1}, {1: 2, 2: 2}, {1: 3, 3: 1},
+                                     {1: 1, 2: 1, 3: 2}])
+@pytest.mark.parametrize('seed', [0, 1, 2])
+def test_long_concave_shape_every_goal_has_three_beacons(beacons, seed):
+    goals = partition(CHEVRON, COUNTS, RADII, 'bubble', seed=seed, margin=0.6).goals
+    span = np.ptp(goal_positions(goals)[:, 1])
+    assert span > REACH * RANGE_M            # no single spot reaches every goal
+    plan = select_beacon_goals(goals, beacons, RANGE_M)
+    assert plan.uncovered == ()
+    marked = {t: sum(g.beacon for g in plan.goals if g.type == t) for t in COUNTS}
+    assert marked == {t: beacons.get(t, 0) for t in COUNTS}
+    cover = _beacon_cover(plan.goals)
+    others = np.array([not g.beacon for g in plan.goals])
+    assert cover[others].min() >= 3
+    assert [(g.id, g.type, g.x, g.y) for g in plan.goals] == \
+        [(g.id, g.type, g.x, g.y) for g in goals]
+
+
+def test_beacons_in_arbitrary_goals_would_leave_goals_short():
+    """Why the choice matters: beacons put on random goals of their types leave some goal
+    with fewer than three in reach in most draws on this shape."""
+    goals = partition(CHEVRON, COUNTS, RADII, 'bubble', seed=0, margin=0.6).goals
+    links = radio_links(goal_positions(goals), REACH * RANGE_M)
+    rng = np.random.default_rng(0)
+    short = 0
+    for _ in range(100):
+        chosen = np.zeros(len(goals), dtype=bool)
+        for t, k in {1: 2, 2: 1, 3: 1}.items():
+            chosen[rng.choice([i for i, g in enumerate(goals) if g.type == t], k,
+                              replace=False)] = True
+        short += bool(((links[chosen].sum(axis=0) < 3) & ~chosen).any())
+    assert short >= 50
+
+
+def test_line_of_sight_counts():
+    """A wall between two clusters cuts the links across it, as in the radio medium."""
+    goals = [Goal(i, 2, x, y, 0.3) for i, (x, y) in enumerate(
+        [(0, 0), (0, 2), (2, 0), (2, 2), (10, 0), (10, 2), (12, 0), (12, 2)])]
+    wall = box(5, -5, 6, 5)
+    links = radio_links(goal_positions(goals), 22.5, [wall])
+    assert links[:4, :4].all() and links[4:, 4:].all()
+    assert not links[:4, 4:].any()
+    assert radio_links(goal_positions(goals), 22.5).all()
+    plan = select_beacon_goals(goals, {2: 6}, RANGE_M, [wall])
+    assert plan.uncovered == ()
+    cover = _beacon_cover(plan.goals, obstacles=[wall])
+    assert all(c >= 3 for c, g in zip(cover, plan.goals) if not g.beacon)
+    # Three beacons cannot serve both sides of the wall.
+    short = select_beacon_goals(goals, {2: 3}, RANGE_M, [wall])
+    assert short.uncovered
+
+
+def test_fewest_beacons_against_brute_force():
+    """beacons_needed is the true minimum: checked by enumerating every subset."""
+    rng = np.random.default_rng(4)
+    for _ in range(3):
+        pts = np.c_[rng.uniform(0, 60, 10), rng.uniform(0, 8, 10)]
+        goals = [Goal(i, 1, float(x), float(y), 0.15) for i, (x, y) in enumerate(pts)]
+        links = radio_links(pts, REACH * RANGE_M)
+        best = None
+        for k in range(0, 11):
+            for subset in itertools.combinations(range(10), k):
+                chosen = np.zeros(10, dtype=bool)
+                chosen[list(subset)] = True
+                if (links[chosen].sum(axis=0)[~chosen] >= 3).all():
+                    best = k
+                    break
+            if best is not None:
+                break
+        assert beacons_needed(goals, RANGE_M) == best
+
+
+def _strip_mission(beacons: int) -> Mission:
+    agents = {i: 2 for i in range(16)}
+    return Mission(MissionConfig(seed=1), agent_types=agents, radii=RADII,
+                   beacons=set(range(beacons)))
+
+
+def test_too_long_shape_is_refused_naming_the_beacons_it_needs():
+    strip = Shape('strip', box(0, 0, 8, 90))
+    mission = _strip_mission(4)
+    with pytest.raises(PartitionError) as err:
+        mission.set_shape(strip)
+    line = str(err.value)
+    assert '\n' not in line
+    k = beacons_needed(partition(strip, {2: 16}, RADII, 'bubble', seed=1,
+                                 margin=0.6).goals, RANGE_M)
+    assert k > 4
+    assert line.startswith(f'shape strip needs at least {k} beacons for a 25 m radio; the '
+                           f'fleet has 4: use --beacons {k}')
+    assert mission.shape is None and mission.shape_version == 0 and mission.goals == []
+    # With K beacons (all of the strip's one type) the same shape is accepted and served.
+    accepted = _strip_mission(k)
+    assert accepted.set_shape(strip)
+    cover = _beacon_cover(accepted.goals)
+    assert all(c >= 3 for c, g in zip(cover, accepted.goals) if not g.beacon)
+    assert sum(g.beacon for g in accepted.goals) == k
+
+
+def test_thesis_circle_always_served():
+    """circle_314 (r = 10 m) with 50 agents and 8 beacons of any types."""
+    shape = load_shape('circle_314')
+    goals = partition(shape, {1: 20, 2: 20, 3: 10}, RADII, 'bubble', seed=0,
+                      margin=0.6).goals
+    for beacons in ({1: 3, 2: 3, 3: 2}, {1: 8}, {3: 8}, {2: 3}):
+        plan = select_beacon_goals(goals, beacons, RANGE_M)
+        assert plan.uncovered == ()
+        assert sum(g.beacon for g in plan.goals) == sum(beacons.values())
+
+
+def test_mission_marks_beacon_goals_and_keeps_them_on_repartition():
+    agents = {i: t for i, t in enumerate([1] * 6 + [2] * 6 + [3] * 4)}
+    beacons = {0, 6, 7, 12}                                   # types 1, 2, 2, 3
+    mission = Mission(MissionConfig(seed=0), agent_types=agents, radii=RADII,
+                      beacons=beacons)
+    assert mission.set_shape(CHEVRON)
+    marked = {t: sum(g.beacon for g in mission.goals if g.type == t) for t in (1, 2, 3)}
+    assert marked == {1: 1, 2: 2, 3: 1}
+    assert min(c for c, g in zip(_beacon_cover(mission.goals), mission.goals)
+               if not g.beacon) >= 3
+    # Losing a beacon: one beacon goal fewer of its type.
+    mission.agent_seen(7, 0.0)
+    for a in agents:
+        if a != 7:
+            mission.agent_seen(a, 10.0)
+    assert mission.check_liveness(10.0) == [7]
+    assert {t: sum(g.beacon for g in mission.goals if g.type == t) for t in (1, 2, 3)} == \
+        {1: 1, 2: 1, 3: 1}
+
+
+def test_unknown_beacons_leave_goals_unmarked():
+    mission = Mission(MissionConfig(seed=0), agent_types={i: 2 for i in range(6)},
+                      radii=RADII)
+    assert mission.set_shape(Shape('box', box(0, 0, 6, 6)))
+    assert not any(g.beacon for g in mission.goals)
+
+
+def test_beacon_flag_round_trips_json():
+    goals = [Goal(0, 1, 1.0, 2.0, 0.15, beacon=True), Goal(1, 2, 3.0, 4.0, 0.3)]
+    assert goals_from_json(goals_to_json(goals)) == goals
+    assert goals_from_json({'goals': [{'x': 0, 'y': 0, 'type': 1, 'radius': 0.1}]})[0] \
+        .beacon is False
