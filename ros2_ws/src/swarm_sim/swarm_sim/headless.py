@@ -156,9 +156,11 @@ class HeadlessSwarm:
         self.mission = Mission(
             MissionConfig(method=scenario.method,
                           seed=scenario.seed if scenario.partition_seed is None
-                          else scenario.partition_seed, remesh=scenario.remesh),
+                          else scenario.partition_seed, remesh=scenario.remesh,
+                          radio_range_m=scenario.medium.range_m),
             agent_types={r.id: r.type for r in fleet},
-            radii={t: r.coverage_radius for t, r in self.types.items()})
+            radii={t: r.coverage_radius for t, r in self.types.items()},
+            beacons={r.id for r in fleet if r.is_beacon})
         self.shapes: list[tuple[float, Shape]] = []
 
     # ------------------------------------------------------------------ mission
