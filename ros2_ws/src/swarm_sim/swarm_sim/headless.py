@@ -25,6 +25,7 @@ import numpy as np
 from swarm_agent.agent_factory import make_brain
 from swarm_agent.brain import AgentBrain
 from swarm_agent.dynamics import PointMassSwarm
+from swarm_agent.mission_radio import MeshListener
 from swarm_mission.mission import Mission, MissionConfig, SequenceStep
 from swarm_mission.robot_types import load_robot_types
 from swarm_mission.shapes import Shape
@@ -37,9 +38,11 @@ from swarm_sim.metrics import (
     SettleTracker,
     trial_metrics,
 )
+from swarm_sim.mission_mesh import MediumWithMission
 from swarm_sim.sensors import GpsModel, ImuModel, ProximityModel
 
 METHODS = ('bubble', 'fractal', 'forces')
+MISSION_RADIO_STREAM = 0x4D52   # seeds the mission radio's losses apart from the rest
 
 
 class ScenarioError(ValueError):
@@ -78,6 +81,8 @@ class Scenario:
     # Robots stand this far (m per axis, Gaussian) from their fleet positions; the brains
     # start from the fleet positions with this uncertainty (swarm_sim.fleet.place_fleet).
     placement_std_m: float = PLACEMENT_STD_M
+    # Where the mission computer's radio stands (m); None: the first shape's centroid.
+    mission_position: tuple[float, float] | None = None
     remesh: str = 'incremental'           # bubble packing on a changed shape (MissionConfig)
 
     def validate(self) -> None:
@@ -140,7 +145,17 @@ class HeadlessSwarm:
                              obstacles=obstacles, half_size=scenario.half_size)
         start = np.array([[r.x, r.y] for r in placed], dtype=float)
         self.dynamics = PointMassSwarm([self.types[r.type] for r in fleet], start)
-        self.medium = RadioMedium(scenario.medium, self.rng, obstacles)
+        # The mission computer is a node of the mesh: it learns which agents are alive
+        # from the route adverts its radio hears (swarm_agent.mission_radio).
+        try:
+            self.mission_radio = MeshListener(self.ids)
+        except ValueError as exc:
+            raise ScenarioError(str(exc)) from None
+        self.medium = MediumWithMission(
+            RadioMedium(scenario.medium, self.rng, obstacles), self.mission_radio,
+            scenario.mission_position if scenario.mission_position is not None
+            else scenario.shape.region.centroid.coords[0],
+            np.random.default_rng([MISSION_RADIO_STREAM, scenario.seed]), obstacles)
         self.imu = ImuModel(self.n, self.rng)
         self.gps = GpsModel(self.rng)
         self.proximity = ProximityModel(self.rng)
@@ -268,10 +283,12 @@ class HeadlessSwarm:
                     if brain is not None and self.is_beacon[i]:
                         fix, std = self.gps.measure(self.dynamics.positions[i])
                         brain.on_gps(t, fix, std)
-            # Liveness for self-repair: a removed agent simply stops being seen.
+            # Liveness for self-repair, over the radio: the agents the mission's radio
+            # holds a route to. A removed agent's neighbours time it out and advertise
+            # the broken route; the mission stops hearing of it.
             if k % every['record'] == 0:
-                for i in np.flatnonzero(self.alive):
-                    self.mission.agent_seen(self.ids[i], t)
+                for agent in self.mission_radio.alive():
+                    self.mission.agent_seen(agent, t)
                 version = self.mission.goal_version
                 self.mission.check_liveness(t)
                 if self.mission.goal_version != version:

@@ -1,0 +1,50 @@
+"""The mission computer as a node of the mesh: liveness learned over the radio.
+
+The thesis's mission computer talks to the swarm through the same XBee mesh as the
+robots. Here it listens: a DSDV router (``swarm_agent.dsdv``) of its own, at the
+radio address ``MISSION_RADIO_ID``, takes the route adverts it hears from the agents
+around it. Through their full dumps it learns a route to every agent its mesh component
+holds; when an agent falls silent, its neighbours time it out and advertise the broken
+route (Fig. 3.9), which reaches the mission the same way. ``alive`` names the agents
+the mission holds a finite route to now: those it hears of, hop by hop. It sends
+nothing, so the agents' routing and consensus do not change.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from swarm_agent.dsdv import DsdvConfig, DsdvRouter, INFINITE_HOPS
+from swarm_agent.packet import Kind, Packet
+
+MISSION_RADIO_ID = 0xFFFE   # below BROADCAST (0xFFFF); no agent may use it
+ADVERT_KINDS = (int(Kind.DSDV_FULL), int(Kind.DSDV_INCREMENTAL))  # what the mission hears
+
+
+class MeshListener:
+    """The mission's radio; see the module docstring."""
+
+    def __init__(self, agent_ids: Iterable[int], node_id: int = MISSION_RADIO_ID,
+                 config: DsdvConfig | None = None) -> None:
+        self.agents = {int(a) for a in agent_ids}
+        if node_id in self.agents:
+            raise ValueError(f"agent id {node_id} is the mission's radio address; give the "
+                             f'agents ids below {node_id}')
+        self.router = DsdvRouter(node_id, config)
+        self.frames = 0
+
+    @property
+    def id(self) -> int:
+        return self.router.id
+
+    def on_packet(self, t: float, packet: Packet) -> None:
+        """A frame the mission's radio heard; only route adverts concern it."""
+        if packet.kind in ADVERT_KINDS:
+            self.frames += 1
+            self.router.on_packet(t, packet)
+
+    def alive(self) -> list[int]:
+        """Agents the mission holds a finite route to, in id order."""
+        table = self.router.table
+        return sorted(a for a in self.agents
+                      if (r := table.get(a)) is not None and r.hop_count < INFINITE_HOPS)
