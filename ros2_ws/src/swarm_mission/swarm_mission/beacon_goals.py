@@ -9,18 +9,18 @@ on a long shape, a goal far from three beacons is one its robot can never stay o
 
 ``select_beacon_goals`` marks, for each robot type, exactly as many goals as the fleet
 has beacons of that type as *beacon goals* (``Goal.beacon``); the assignment then gives
-beacon goals to beacons only (``swarm_agent.costs.class_costs``). The choice is a greedy
-set multi-cover: every goal that is not a beacon goal needs ``need`` beacon goals within
-``reach * range_m`` and line of sight (a beacon goal's own robot has its GPS); each step
-takes, among the goals of a type with beacons left, the one that covers the most still
-under-covered goals (ties: a goal that was a beacon goal before, so re-meshing keeps
-beacons where they are; then the farthest from the beacon goals chosen so far, which
-spreads the beacons and keeps them off one line; then the lowest id). Once every goal is
-covered ``need`` times the remaining beacons raise the cover level one by one. If goals
-stay under-covered, swaps of a beacon goal for another goal of its type that lower the
-shortfall are tried. ``check_localizable`` refuses a plan that still leaves a goal
-under-covered, with one line naming the number of beacons the shape needs (a greedy
-cover by beacons of any type).
+beacon goals to beacons only (``swarm_agent.costs.class_costs``). Every goal that is not
+a beacon goal needs ``need`` beacon goals within ``reach * range_m`` and line of sight
+(a beacon goal's own robot has its GPS). The choice is a set multi-cover solved exactly
+as a small integer programme (scipy ``milp``, HiGHS; see ``_solve``): least shortfall
+first, then the most goals with a spare beacon in reach, then the goals that were beacon
+goals before (re-meshing keeps the beacons where they are). Range alone does not make a
+good fix: beacons all on one side of a goal fix it badly across that direction
+(horizontal dilution of precision, HDOP; 3.1.1, eq. 3.17's normal matrix). Swaps of a
+beacon goal for another goal of its type that keep every goal covered and lower the
+worst HDOP over the goals by more than ``HDOP_GAIN`` follow. ``check_localizable``
+refuses a plan that leaves a goal short, with one line naming the fewest beacons of any
+types that would serve the shape's goals (``beacons_needed``, the same programme).
 """
 
 from __future__ import annotations
@@ -39,6 +39,7 @@ from swarm_mission.goals import Goal, goal_positions, PartitionError
 MIN_BEACONS = 3       # beacons a 2-D trilateration needs (thesis 3.1.1)
 REACH = 0.9           # fraction of the radio range a goal's beacons may be away
 SOLVER_TIME_LIMIT_S = 10.0
+HDOP_GAIN = 0.05      # a geometry swap must lower the worst HDOP by this fraction
 
 
 @dataclass(frozen=True)
@@ -122,6 +123,57 @@ def _solve(links: np.ndarray, need: int, types: np.ndarray, quota: Mapping[int, 
     return np.round(result.x[:n]).astype(bool)
 
 
+def hdop(points: np.ndarray, links: np.ndarray, chosen: np.ndarray) -> np.ndarray:
+    """Horizontal dilution of precision of each goal's fix from the beacon goals in reach.
+
+    ``sqrt(trace((U^T U)^-1))`` over the unit vectors U from the goal to those beacons
+    (range error 1); inf with fewer than two directions, 0 for the beacon goals.
+    """
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    d = pts[None, chosen, :] - pts[:, None, :]                  # (goal, beacon, 2)
+    norm = np.linalg.norm(d, axis=2)
+    use = links[:, chosen] & (norm > 1e-9)
+    u = np.where(use[..., None], d / np.where(norm > 1e-9, norm, 1.0)[..., None], 0.0)
+    gxx = np.sum(u[..., 0] ** 2, axis=1)
+    gyy = np.sum(u[..., 1] ** 2, axis=1)
+    gxy = np.sum(u[..., 0] * u[..., 1], axis=1)
+    det = gxx * gyy - gxy ** 2
+    with np.errstate(divide='ignore', invalid='ignore'):
+        out = np.where(det > 1e-9 * np.maximum(gxx + gyy, 1e-12) ** 2,
+                       np.sqrt((gxx + gyy) / det), np.inf)
+    out[chosen] = 0.0
+    return out
+
+
+def _improve_geometry(points: np.ndarray, links: np.ndarray, chosen: np.ndarray,
+                      types: np.ndarray, need: int) -> np.ndarray:
+    """Best-improvement swaps (beacon goal for a goal of its type) that keep every covered
+    goal covered and lower the worst HDOP by more than ``HDOP_GAIN``."""
+    chosen = chosen.copy()
+
+    def score(mask: np.ndarray) -> tuple[int, float]:
+        cover = links[mask].sum(axis=0)
+        short = int(np.sum(~mask & (cover < need)))
+        values = hdop(points, links, mask)[~mask & (cover >= need)]
+        return short, float(values.max()) if len(values) else 0.0
+
+    best = score(chosen)
+    for _ in range(4 * int(chosen.sum()) + 1):
+        move, value = None, best
+        for b in np.flatnonzero(chosen):
+            for c in np.flatnonzero(~chosen & (types == types[b])):
+                chosen[b], chosen[c] = False, True
+                trial = score(chosen)
+                chosen[b], chosen[c] = True, False
+                if trial[0] <= best[0] and trial[1] < (1.0 - HDOP_GAIN) * value[1]:
+                    move, value = (b, c), trial
+        if move is None:
+            break
+        chosen[move[0]], chosen[move[1]] = False, True
+        best = value
+    return chosen
+
+
 def select_beacon_goals(goals: Sequence[Goal], beacons: Mapping[int, int], range_m: float,
                         obstacles: Sequence[Polygon] = (), *, need: int = MIN_BEACONS,
                         reach: float = REACH, prefer: Collection[int] = ()) -> BeaconPlan:
@@ -145,6 +197,7 @@ def select_beacon_goals(goals: Sequence[Goal], beacons: Mapping[int, int], range
     wanted = set(prefer)
     chosen = _solve(links, need, types, quota,
                     np.array([g.id in wanted for g in goals], dtype=float))
+    chosen = _improve_geometry(goal_positions(goals), links, chosen, types, need)
     cover = links[chosen].sum(axis=0)
     uncovered = tuple(g.id for g, c, b in zip(goals, cover, chosen) if not b and c < need)
     marked = [replace(g, beacon=bool(b)) for g, b in zip(goals, chosen)]
