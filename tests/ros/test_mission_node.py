@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import yaml
 
 rclpy = pytest.importorskip('rclpy')
 
@@ -66,3 +67,30 @@ def test_morph_and_sequence_file_together_are_refused(tmp_path):
         with pytest.raises(ShapeError, match='sequence_file or morph, not both'):
             MissionNode(context=context, parameter_overrides=_params(
                 morph='move:4@0.5+1', sequence_file=str(sequence)))
+
+
+def test_fleet_beacons_get_beacon_goals_on_the_wire(tmp_path):
+    """The fleet file's beacons (two of type 1, one of type 2) get as many beacon goals
+    of their types, published in GoalState.beacon."""
+    fleet = tmp_path / 'fleet.yaml'
+    robots = [{'id': i, 'type': t, 'beacon': i in (0, 1, 3), 'x': float(i), 'y': 0.0}
+              for i, t in enumerate([1, 1, 1, 2, 2])]
+    fleet.write_text(yaml.safe_dump({'robots': robots}))
+    with ros_context() as (context, executor):
+        mission = MissionNode(context=context, parameter_overrides=_params(
+            fleet_file=str(fleet)))
+        probe = rclpy.create_node('probe', context=context)
+        got: list[GoalArray] = []
+        probe.create_subscription(GoalArray, '/swarm/goals', got.append,
+                                  QoSProfile(**qos.LATCHED))
+        executor.add_node(mission)
+        executor.add_node(probe)
+        try:
+            assert spin_until(executor, lambda: bool(got), timeout=20.0)
+        finally:
+            mission.destroy_node()
+            probe.destroy_node()
+    goals = goals_from_msg(got[-1])
+    assert len(goals) == 5
+    assert sorted(g.type for g in goals if g.beacon) == [1, 1, 2]
+    assert [g.beacon for g in goals] == [g.beacon for g in mission.mission.goals]

@@ -42,7 +42,8 @@ PARAMETERS = {
                   'move (m along x, or DX,DY), rotate (degrees) or grow (by 1 + '
                   'AMOUNT), e.g. move:15@200+60; not with sequence_file'),
     'method': ('bubble', 'Partition method: bubble, fractal or forces (no partition)'),
-    'fleet_file': ('', 'Fleet YAML (robots: id, type, ...): the swarm composition'),
+    'fleet_file': ('', 'Fleet YAML (robots: id, type, beacon, ...): the swarm composition '
+                       'and its position beacons, for whom beacon goals are chosen'),
     'type_counts': ('1:20,2:20,3:10', 'Composition when no fleet file: ids 0.. in type order'),
     'seed': (0, 'Partition seed (deterministic partitions)'),
     'decentralized': (False, 'Only announce shapes; agents partition themselves'),
@@ -51,6 +52,8 @@ PARAMETERS = {
     'formation_margin_m': (0.6, 'Partition the shape shrunk by this band (m) so robots '
                                 'parked off their goals under localization error stay '
                                 'inside; 0: the shape as is'),
+    'radio_range_m': (25.0, 'Radio range (m) the beacon goals are chosen for, thesis 4.1 '
+                            '(the radio_range_m of sim_node)'),
     'remesh': ('incremental', 'Bubble packing on a changed shape: incremental (goals '
                               'move, keeping their ids) or scratch (new goals, re-assigned)'),
 }
@@ -70,7 +73,9 @@ class MissionNode(Node):
             with open(p['fleet_file'], encoding='utf-8') as stream:
                 robots = yaml.safe_load(stream)['robots']
             agent_types = {int(r['id']): int(r['type']) for r in robots}
+            beacons = {int(r['id']) for r in robots if r.get('beacon', False)}
         else:
+            beacons = None
             counts = parse_type_counts(p['type_counts'])
             agent_types = dict(enumerate(t for t in sorted(counts) for _ in range(counts[t])))
         for t in set(agent_types.values()):
@@ -80,9 +85,10 @@ class MissionNode(Node):
         self.mission = Mission(
             MissionConfig(method=p['method'], seed=p['seed'],
                           agent_timeout_s=p['agent_timeout_s'], repair=p['repair'],
-                          formation_margin=p['formation_margin_m'], remesh=p['remesh']),
+                          formation_margin=p['formation_margin_m'], remesh=p['remesh'],
+                          radio_range_m=p['radio_range_m']),
             agent_types=agent_types,
-            radii={t: r.coverage_radius for t, r in types.items()})
+            radii={t: r.coverage_radius for t, r in types.items()}, beacons=beacons)
         if p['sequence_file'] and p['morph']:
             raise ShapeError('set the mission parameter sequence_file or morph, not both')
         base = None if p['sequence_file'] else load_shape(p['shape'], scale=p['shape_scale'])
