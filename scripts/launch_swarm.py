@@ -331,6 +331,12 @@ def validate(args: argparse.Namespace):
                 partition(final.shape, counts, radii, args.method, seed=args.seed)
         fleet = random_fleet(counts, beacons, np.random.default_rng(args.seed),
                              half_size=args.half_size, obstacles=list(shape.obstacles))
+        if args.method != 'forces':
+            # As mission_node will: every goal needs three of the fleet's beacons in reach.
+            from swarm_mission.mission import Mission, MissionConfig
+            Mission(MissionConfig(method=args.method, seed=args.seed),
+                    agent_types={r.id: r.type for r in fleet}, radii=radii,
+                    beacons={r.id for r in fleet if r.is_beacon}).set_shape(shape)
     except (ShapeError, PartitionError, RobotTypeError, ValueError) as exc:
         raise LaunchError(str(exc)) from exc
     check_before_end('--move-obstacle', [t for t, _ in args.obstacle_moves], args.duration)
@@ -686,6 +692,7 @@ def main(argv: list[str] | None = None) -> int:
                       f'{children.tail(crashed)}', file=sys.stderr)
                 break
             t = status['t']
+            changed = False     # a change below ends the settled streak read in ``status``
             if started is None and status['agents_heard'] >= args.agents:
                 started = (time.monotonic() - wall0, t)
             while robot_faults and robot_faults[0][0] <= t:
@@ -700,6 +707,7 @@ def main(argv: list[str] | None = None) -> int:
                 fault_log.append({'time': when, 'sent_at': t, 'topic': topic,
                                   'agents': victims})
                 monitor.change(t)
+                changed = True
             while obstacle_moves and obstacle_moves[0][0] <= t:
                 when, move = obstacle_moves.pop(0)
                 move_pub.publish(Float64MultiArray(data=move))
@@ -708,12 +716,14 @@ def main(argv: list[str] | None = None) -> int:
                 print(f'\nlaunch_swarm: t={t:.1f} s obstacle {int(move[0])} moved by '
                       f'({move[1]:g}, {move[2]:g}) m', flush=True)
                 monitor.change(t)
+                changed = True
             while settings and settings[0][0] <= t and sim_params_client.services_are_ready():
                 when, name, value = settings.pop(0)
                 entry = {'time': when, 'sent_at': t, 'name': name, 'value': value}
                 pending_sets.append((entry, sim_params_client.set_parameters(
                     [rclpy.parameter.Parameter(name, value=value)])))
                 monitor.change(t)
+                changed = True
             for entry, future in [p for p in pending_sets if p[1].done()]:
                 pending_sets.remove((entry, future))
                 result = future.result()
@@ -747,9 +757,9 @@ def main(argv: list[str] | None = None) -> int:
                 break
             # Settled (eq. 4.1) for the hold window since the last change (the monitor
             # checks every truth message), with nothing left to do.
-            if status['settle_held'] and not robot_faults and not obstacle_moves and \
-                    not settings and not pending_sets and t >= args.min_duration and \
-                    t > args.last_switch:
+            if status['settle_held'] and not changed and not robot_faults and \
+                    not obstacle_moves and not settings and not pending_sets and \
+                    t >= args.min_duration and t > args.last_switch:
                 outcome = 'settled'
                 break
     except KeyboardInterrupt:

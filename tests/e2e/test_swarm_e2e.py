@@ -31,7 +31,7 @@ pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 def _launch(processes, out: pathlib.Path, *extra: str, timeout: float = 1200.0) -> dict:
     proc = processes.python(str(LAUNCH), '--agents', '12', '--beacons', '3',
                             '--method', 'bubble', '--shape', str(SHAPE),
-                            '--half-size', '15', '--duration', '400', '--settle-hold', '3',
+                            '--half-size', '15', '--duration', '400',
                             '--out', str(out), *extra,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     output, _ = proc.communicate(timeout=timeout)

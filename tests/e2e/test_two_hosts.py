@@ -98,7 +98,7 @@ def test_a_swarm_split_over_two_hosts_forms_the_shape(processes, two_hosts, ros_
             env=_env(pair, 'b'), stdout=stream, stderr=subprocess.STDOUT)
     host_a = processes.start(pair.command('a', [
         sys.executable, *common, '--local-agents', f'0-{SPLIT - 1}', '--duration', '400',
-        '--settle-hold', '3', '--out', str(tmp_path / 'a')]),
+        '--out', str(tmp_path / 'a')]),
         env=_env(pair, 'a'), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     output, _ = host_a.communicate(timeout=500)
     assert host_a.returncode == 0, output[-3000:]
