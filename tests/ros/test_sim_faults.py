@@ -33,8 +33,10 @@ def _world(tmp_path, robots, **params):
     """A SimNode over ``robots`` (RobotSpec) with a probe node, spun by one executor."""
     fleet_file = tmp_path / 'fleet.yaml'
     save_fleet(fleet_file, robots)
+    # placement_std_m 0: the robots stand exactly where each test puts them.
     settings = {'fleet_file': str(fleet_file), 'backend': 'pointmass',
-                'real_time_factor': 0.0, 'max_agent_lag_s': 0.0, 'half_size': 20.0, **params}
+                'real_time_factor': 0.0, 'max_agent_lag_s': 0.0, 'half_size': 20.0,
+                'placement_std_m': 0.0, **params}
     with ros_context() as (context, executor):
         sim = SimNode(context=context, parameter_overrides=[
             Parameter(name, value=value) for name, value in settings.items()])
@@ -97,7 +99,8 @@ def _check_run_time_settings(executor, sim, client):
     # of sim time and cuts 0-1 and 1-2 while it stands between them.
     t0 = sim.t
     assert set_param('radio_wall_speed_mps', 5.0).successful
-    assert sim.medium.wall is not None and sim.medium.wall.t0 == pytest.approx(t0)
+    # The wall starts when the sim applied the setting, which it kept stepping around.
+    assert sim.medium.wall is not None and t0 <= sim.medium.wall.t0 <= sim.t
     assert _until(executor, lambda: len(sim.medium.neighbours(1)) < 2, timeout=30.0)
     assert _until(executor, lambda: sim.medium.wall is None, timeout=30.0)  # it left
     assert _until(executor, lambda: sorted(sim.medium.neighbours(1)) == [0, 2])
