@@ -185,17 +185,18 @@ def test_thesis_circle_always_served():
         assert sum(g.beacon for g in plan.goals) == sum(beacons.values())
 
 
-def test_mission_marks_beacon_goals_and_keeps_them_on_repartition():
+@pytest.mark.parametrize('method', ['bubble', 'fractal'])
+def test_mission_marks_beacon_goals_after_every_partition(method):
     agents = {i: t for i, t in enumerate([1] * 6 + [2] * 6 + [3] * 4)}
     beacons = {0, 6, 7, 12}                                   # types 1, 2, 2, 3
-    mission = Mission(MissionConfig(seed=0), agent_types=agents, radii=RADII,
+    mission = Mission(MissionConfig(method=method, seed=0), agent_types=agents, radii=RADII,
                       beacons=beacons)
     assert mission.set_shape(CHEVRON)
     marked = {t: sum(g.beacon for g in mission.goals if g.type == t) for t in (1, 2, 3)}
     assert marked == {1: 1, 2: 2, 3: 1}
     assert min(c for c, g in zip(_beacon_cover(mission.goals), mission.goals)
                if not g.beacon) >= 3
-    # Losing a beacon: one beacon goal fewer of its type.
+    # Losing a beacon: the survivors' partition has one beacon goal fewer of its type.
     mission.agent_seen(7, 0.0)
     for a in agents:
         if a != 7:
@@ -203,6 +204,17 @@ def test_mission_marks_beacon_goals_and_keeps_them_on_repartition():
     assert mission.check_liveness(10.0) == [7]
     assert {t: sum(g.beacon for g in mission.goals if g.type == t) for t in (1, 2, 3)} == \
         {1: 1, 2: 1, 3: 1}
+    # Self-repair does not refuse: a goal left short is logged for the operator.
+    short = [g.id for c, g in zip(_beacon_cover(mission.goals), mission.goals)
+             if not g.beacon and c < 3]
+    assert bool(short) == any(f'goals {short} have fewer than 3 beacons' in e
+                              for e in mission.events)
+
+
+def test_forces_has_no_goals_to_mark():
+    mission = Mission(MissionConfig(method='forces'), agent_types={i: 2 for i in range(6)},
+                      radii=RADII, beacons={0, 1, 2})
+    assert mission.set_shape(CHEVRON) and mission.goals == []
 
 
 def test_unknown_beacons_leave_goals_unmarked():
