@@ -177,8 +177,14 @@ def main(argv: list[str] | None = None) -> int:
     print('|---|---|---|---|---|---|---|')
     for n in sizes:
         for loss in losses:
-            trials = [bench(n, seed, args.limit, loss)
-                      for seed in range(args.seed, args.seed + args.seeds)]
+            trials = []
+            for seed in range(args.seed, args.seed + args.seeds):
+                trials.append(bench(n, seed, args.limit, loss))
+                r = trials[-1]
+                print(f'bench_dsdv: {n} agents, loss {loss:g}, seed {seed}: cold start '
+                      f'{r["cold_start_s"]} s, link break {r["link_break_s"]} s, link addition '
+                      f'{r.get("link_addition_s")} s; wall {r["wall_s"]:.0f} s',
+                      file=sys.stderr, flush=True)
             rows.extend(trials)
             agg = aggregate(trials, period)
             agg['wall_s'] = float(sum(r['wall_s'] for r in trials))

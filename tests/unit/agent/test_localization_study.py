@@ -4,6 +4,7 @@ scripts/localization_study.py; thesis 4.2, Figs. 4.4-4.6)."""
 from __future__ import annotations
 
 import json
+from types import SimpleNamespace
 
 import localization_study
 import numpy as np
@@ -12,6 +13,7 @@ import pytest
 from swarm_agent.localization import LocalizationConfig, Localizer, Mode
 from swarm_sim.localization_study import (
     FixProbe,
+    steady_mask,
     study,
     StudyConfig,
     StudyError,
@@ -71,6 +73,17 @@ def test_toa_probe_runs_the_localizers_own_trilateration():
     assert probe.first_fix == 3.0 and probe.fixes == 1
     assert np.hypot(*(loc.position - truth)) < 0.1 * np.hypot(*truth)
     assert loc.localize(6.0, []) == Mode.LOST and probe.misses == 1
+
+
+def test_steady_means_normal_for_the_last_three_periods():
+    """An agent NORMAL from 0 to 10 s, LOST until 12 s, NORMAL again: with a 3 s period
+    its samples are steady from 9 s to 10 s and again from 21 s (12 + 9) on."""
+    times = np.arange(0.0, 30.0, 0.5)
+    lost = (times > 10.0) & (times < 12.0)
+    record = SimpleNamespace(times=times, modes=np.where(lost, Mode.LOST, Mode.NORMAL)[:, None],
+                             alive=np.ones((len(times), 1), bool))
+    mask = steady_mask(SimpleNamespace(record=record, agents=np.array([0]), period=3.0))
+    assert list(times[mask[:, 0]]) == [9.0, 9.5, 10.0] + list(np.arange(21.0, 30.0, 0.5))
 
 
 def _tiny(half_size: float) -> StudyConfig:

@@ -102,6 +102,7 @@ class TrialResult:
     """One trial: the 2 Hz record, and per non-beacon agent its probe's findings."""
 
     record: TrialRecord
+    period: float                        # localization period (s)
     agents: np.ndarray                   # (M,) indices of the non-beacon agents
     first_fix: np.ndarray                # (M,) time of the first fix, inf when none
     pre_tick_errors: list[np.ndarray]    # per agent
@@ -165,7 +166,7 @@ def run_trial(period: float, noise: str, seed: int, duration: float,
         probes.append(probe)
     record = swarm.run()
     return TrialResult(
-        record=record, agents=agents,
+        record=record, period=period, agents=agents,
         first_fix=np.array([np.inf if p.first_fix is None else p.first_fix for p in probes]),
         pre_tick_errors=[np.array(p.pre_tick_errors) for p in probes],
         fixes=sum(p.fixes for p in probes), misses=sum(p.misses for p in probes))
@@ -183,12 +184,35 @@ def error_samples(trial: TrialResult) -> tuple[np.ndarray, np.ndarray]:
     return err, pre
 
 
+def steady_mask(trial: TrialResult, periods: float = 3.0) -> np.ndarray:
+    """(T, M): the agent has been NORMAL at every record sample of the last ``periods``
+    localization periods (so it has fixed at least that many times in a row)."""
+    rec = trial.record
+    normal = (rec.modes[:, trial.agents] == Mode.NORMAL) & rec.alive[:, trial.agents]
+    run = np.full(normal.shape, -1.0)
+    start = np.full(normal.shape[1], np.nan)     # when the current NORMAL spell began
+    for k, t in enumerate(rec.times):
+        start = np.where(normal[k], np.where(np.isnan(start), t, start), np.nan)
+        run[k] = np.where(normal[k], t - start, -1.0)
+    return run >= periods * trial.period
+
+
 def summarize(trials: Sequence[TrialResult]) -> dict:
-    """Error and mode statistics over trials of one (period, noise profile)."""
+    """Error and mode statistics over trials of one (period, noise profile).
+
+    Besides the statistics over every sample after the first fix, ``steady_*`` are over
+    the samples of agents NORMAL for the last three periods, and
+    ``max_error_reacquiring`` over the others (agents coming back from LOST or
+    RETURN_HOME, whose grown covariance lets the first fix move them almost all the way).
+    """
     samples, pre, lost, home, never = [], [], [], [], 0
+    steady, reacquiring = [], []
     for trial in trials:
         err, p = error_samples(trial)
         samples.append(err[np.isfinite(err)])
+        mask = steady_mask(trial)
+        steady.append(err[np.isfinite(err) & mask])
+        reacquiring.append(err[np.isfinite(err) & ~mask])
         pre.append(p)
         modes = trial.record.modes[:, trial.agents]
         alive = trial.record.alive[:, trial.agents]
@@ -197,6 +221,8 @@ def summarize(trials: Sequence[TrialResult]) -> dict:
         never += int(np.sum(~np.isfinite(trial.first_fix)))
     err = np.concatenate(samples)
     pre_all = np.concatenate(pre)
+    steady_err = np.concatenate(steady)
+    reacq = np.concatenate(reacquiring)
     nan = float('nan')
     fixes = sum(t.fixes for t in trials)
     ticks = fixes + sum(t.misses for t in trials)
@@ -208,6 +234,11 @@ def summarize(trials: Sequence[TrialResult]) -> dict:
         'rms_error': float(np.sqrt(np.mean(err ** 2))) if len(err) else nan,
         'mean_error': float(err.mean()) if len(err) else nan,
         'max_pre_tick_error': float(pre_all.max()) if len(pre_all) else nan,
+        'steady_max_error': float(steady_err.max()) if len(steady_err) else nan,
+        'steady_p95_error': float(np.percentile(steady_err, 95)) if len(steady_err) else nan,
+        'steady_rms_error': float(np.sqrt(np.mean(steady_err ** 2))) if len(steady_err) else nan,
+        'steady_share': len(steady_err) / len(err) if len(err) else nan,
+        'max_error_reacquiring': float(reacq.max()) if len(reacq) else nan,
         'lost_share': float(np.mean(lost)),
         'return_home_share': float(np.mean(home)),
         'lost_or_home_share': float(np.mean(lost) + np.mean(home)),
