@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import yaml
@@ -70,15 +72,20 @@ def test_morph_and_sequence_file_together_are_refused(tmp_path):
 
 
 def test_fleet_beacons_get_beacon_goals_on_the_wire(tmp_path):
-    """The fleet file's beacons (two of type 1, one of type 2) get as many beacon goals
-    of their types, published in GoalState.beacon."""
+    """On a 20 m x 38 m chevron, longer than 0.9 x 25 m of radio, the fleet file's beacons
+    (two of type 1, one of type 2, one of type 3) get as many beacon goals of their
+    types, published in GoalState.beacon."""
+    shape = tmp_path / 'chevron.json'
+    shape.write_text(json.dumps({'outer': [[0, 0], [10, 8], [20, 0], [20, 30], [10, 38],
+                                           [0, 30], [6, 19]]}))
     fleet = tmp_path / 'fleet.yaml'
-    robots = [{'id': i, 'type': t, 'beacon': i in (0, 1, 3), 'x': float(i), 'y': 0.0}
-              for i, t in enumerate([1, 1, 1, 2, 2])]
+    types = [1] * 6 + [2] * 6 + [3] * 4
+    robots = [{'id': i, 'type': t, 'beacon': i in (0, 1, 6, 12), 'x': float(i), 'y': -5.0}
+              for i, t in enumerate(types)]
     fleet.write_text(yaml.safe_dump({'robots': robots}))
     with ros_context() as (context, executor):
         mission = MissionNode(context=context, parameter_overrides=_params(
-            fleet_file=str(fleet)))
+            shape=str(shape), fleet_file=str(fleet)))
         probe = rclpy.create_node('probe', context=context)
         got: list[GoalArray] = []
         probe.create_subscription(GoalArray, '/swarm/goals', got.append,
@@ -91,6 +98,6 @@ def test_fleet_beacons_get_beacon_goals_on_the_wire(tmp_path):
             mission.destroy_node()
             probe.destroy_node()
     goals = goals_from_msg(got[-1])
-    assert len(goals) == 5
-    assert sorted(g.type for g in goals if g.beacon) == [1, 1, 2]
+    assert len(goals) == 16
+    assert sorted(g.type for g in goals if g.beacon) == [1, 1, 2, 3]
     assert [g.beacon for g in goals] == [g.beacon for g in mission.mission.goals]

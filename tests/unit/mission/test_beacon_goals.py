@@ -13,6 +13,7 @@ import pytest
 from shapely.geometry import box, LineString, Polygon
 
 from swarm_mission.beacon_goals import (
+    any_placement_serves,
     beacons_needed,
     hdop,
     radio_links,
@@ -145,6 +146,42 @@ def test_fewest_beacons_against_brute_force():
             if best is not None:
                 break
         assert beacons_needed(goals, RANGE_M) == best
+
+
+def test_any_placement_serves_against_every_placement():
+    """Compared with the cover of every placement of the beacons on goals of their types."""
+    rng = np.random.default_rng(7)
+    seen = set()
+    for _ in range(20):
+        pts = np.c_[rng.uniform(0, 27, 7), rng.uniform(0, 6, 7)]
+        types = [1, 1, 1, 1, 2, 2, 2]
+        goals = [Goal(i, t, float(x), float(y), 0.15) for i, (t, (x, y)) in
+                 enumerate(zip(types, pts))]
+        links = radio_links(pts, REACH * RANGE_M)
+        beacons = {1: 2, 2: 1}
+        every = True
+        for ones in itertools.combinations(range(4), 2):
+            for twos in itertools.combinations(range(4, 7), 1):
+                chosen = np.zeros(7, dtype=bool)
+                chosen[list(ones + twos)] = True
+                every &= bool((links[chosen].sum(axis=0)[~chosen] >= 3).all())
+        assert any_placement_serves(goals, beacons, RANGE_M) == every
+        seen.add(every)
+    assert seen == {True, False}
+
+
+def test_beacon_goals_only_where_a_placement_could_fail():
+    """circle_314 is 20 m across, inside 0.9 x 25 m: every goal reaches every beacon and
+    the beacons stay free; the 38 m chevron needs beacon goals."""
+    circle = load_shape('circle_314')
+    goals = partition(circle, {1: 20, 2: 20, 3: 10}, RADII, 'bubble', seed=0, margin=0.6).goals
+    assert any_placement_serves(goals, {1: 3, 2: 3, 3: 2}, RANGE_M)
+    agents = {i: 1 + i % 3 for i in range(50)}
+    mission = Mission(MissionConfig(seed=0), agent_types=agents, radii=RADII,
+                      beacons=set(range(8)))
+    assert mission.set_shape(circle) and not any(g.beacon for g in mission.goals)
+    long_goals = partition(CHEVRON, COUNTS, RADII, 'bubble', seed=0, margin=0.6).goals
+    assert not any_placement_serves(long_goals, {1: 2, 2: 1, 3: 1}, RANGE_M)
 
 
 def _strip_mission(beacons: int) -> Mission:

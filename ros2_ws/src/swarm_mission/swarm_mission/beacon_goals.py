@@ -7,7 +7,10 @@ robot turns LOST and then RETURN_HOME (3.1.3). The beacons are robots of the swa
 take goals like every other robot, so where they park decides which goals can be held:
 on a long shape, a goal far from three beacons is one its robot can never stay on.
 
-``select_beacon_goals`` marks, for each robot type, exactly as many goals as the fleet
+``any_placement_serves`` tells whether beacon goals are needed at all: on a compact
+shape every goal has three beacons in reach wherever they park, and the beacons are
+left free to take the nearest goals. Otherwise ``select_beacon_goals`` marks, for each
+robot type, exactly as many goals as the fleet
 has beacons of that type as *beacon goals* (``Goal.beacon``); the assignment then gives
 beacon goals to beacons only (``swarm_agent.costs.class_costs``). Every goal that is not
 a beacon goal needs ``need`` beacon goals within ``reach * range_m`` and line of sight
@@ -172,6 +175,34 @@ def _improve_geometry(points: np.ndarray, links: np.ndarray, chosen: np.ndarray,
         chosen[move[0]], chosen[move[1]] = False, True
         best = value
     return chosen
+
+
+def any_placement_serves(goals: Sequence[Goal], beacons: Mapping[int, int], range_m: float,
+                         obstacles: Sequence[Polygon] = (), *, need: int = MIN_BEACONS,
+                         reach: float = REACH) -> bool:
+    """True when every goal has ``need`` beacons in reach wherever the beacons park.
+
+    The worst placement for goal j puts each type's beacons first on the goals of that
+    type out of j's reach: j keeps ``sum_t max(0, b_t - out_t(j))`` of them. A goal whose
+    type has as many beacons as goals is always a beacon goal itself. Then beacon goals
+    are not needed (a compact shape: thesis circle_314, 20 m across).
+    """
+    goals = list(goals)
+    if not goals:
+        return True
+    types = np.array([g.type for g in goals])
+    links = radio_links(goal_positions(goals), reach * range_m, obstacles)
+    for j in range(len(goals)):
+        own = int(types[j])
+        if beacons.get(own, 0) >= int(np.sum(types == own)):
+            continue
+        worst = 0
+        for t in np.unique(types):
+            out = int(np.sum((types == t) & ~links[j]))
+            worst += max(0, int(beacons.get(int(t), 0)) - out)
+        if worst < need:
+            return False
+    return True
 
 
 def select_beacon_goals(goals: Sequence[Goal], beacons: Mapping[int, int], range_m: float,

@@ -11,9 +11,10 @@ Pure logic shared by ``mission_node`` and the headless evaluator:
   fresh ids, which the agents must re-assign (the latency the thesis describes).
 - A sequence of ``SequenceStep`` switches shapes at given times (dynamic formations,
   4.3.4); ``morph_sequence`` builds the smooth changes of 4.3.4 from one shape.
-- Given the fleet's beacons, every partition marks beacon goals
-  (``swarm_mission.beacon_goals``) so that each goal has three beacons in radio reach;
-  a shape the beacons cannot serve so is refused with the number of beacons it needs.
+- Given the fleet's beacons, every partition on which some placement of the beacons
+  would leave a goal with fewer than three in radio reach marks beacon goals
+  (``swarm_mission.beacon_goals``) so that each goal has three; a shape the beacons
+  cannot serve so is refused with the number of beacons it needs.
 - Agents report liveness (their state messages on ROS, or the brains in the
   evaluator); an agent silent for ``agent_timeout_s`` is declared lost and the shape is
   re-partitioned for the survivors (self-repair).
@@ -31,7 +32,11 @@ import pathlib
 
 import yaml
 
-from swarm_mission.beacon_goals import check_localizable, select_beacon_goals
+from swarm_mission.beacon_goals import (
+    any_placement_serves,
+    check_localizable,
+    select_beacon_goals,
+)
 from swarm_mission.coverability import check_coverable
 from swarm_mission.goals import Goal, PartitionError
 from swarm_mission.partition import partition, PartitionResult
@@ -274,11 +279,13 @@ class Mission:
         return True
 
     def _mark_beacon_goals(self, goals: list[Goal], strict: bool) -> list[Goal]:
-        """``goals`` with beacon goals marked for the living beacons (as they are when the
-        beacons are unknown)."""
+        """``goals`` with beacon goals marked for the living beacons; as they are when the
+        beacons are unknown or every placement of them serves every goal."""
         if self.beacons is None or not goals:
             return goals
         range_m = self.config.radio_range_m
+        if any_placement_serves(goals, self.beacon_counts(), range_m, self.shape.obstacles):
+            return goals
         plan = select_beacon_goals(goals, self.beacon_counts(), range_m, self.shape.obstacles,
                                    prefer={g.id for g in self.goals if g.beacon})
         if plan.uncovered:
