@@ -142,6 +142,10 @@ class StudyConfig:
             raise StudyError(f'fix noise must be positive, got {self.fix_std_m} m')
 
 
+def _nothing(swarm: HeadlessSwarm, t: float) -> None:
+    """An event that changes nothing."""
+
+
 def run_trial(period: float, noise: str, seed: int, duration: float,
               config: StudyConfig | None = None) -> TrialResult:
     """One headless run of the scenario with localization period ``period``."""
@@ -151,8 +155,9 @@ def run_trial(period: float, noise: str, seed: int, duration: float,
         type_counts=default_type_counts(config.agents), n_beacons=config.beacons,
         seed=seed, duration_s=duration, imu_period_s=config.imu_period_s,
         localization_period_s=period, half_size=config.half_size,
-        settle_hold_s=math.inf,          # run the whole duration: parked agents count too
-        **config.extra)
+        # A run ends once settled; an event scheduled after its end keeps it going to the
+        # duration, so the parked agents count too.
+        events=[(duration + 1.0, _nothing)], **config.extra)
     swarm = HeadlessSwarm(scenario)
     fix_rng = np.random.default_rng([seed, 0x10C])
     fix_model = (TrilaterationFixModel(fix_rng, std=config.fix_std_m)
@@ -227,6 +232,7 @@ def summarize(trials: Sequence[TrialResult]) -> dict:
     fixes = sum(t.fixes for t in trials)
     ticks = fixes + sum(t.misses for t in trials)
     settling = [t.record.metrics.get('settling_time') for t in trials]
+    settling = [None if s is None or not np.isfinite(s) else float(s) for s in settling]
     return {
         'max_error': float(max(err.max(initial=0.0), pre_all.max(initial=0.0)))
         if len(err) else nan,
@@ -245,8 +251,7 @@ def summarize(trials: Sequence[TrialResult]) -> dict:
         'fix_share': fixes / ticks if ticks else nan,
         'agents_never_fixed': never,
         'samples': int(len(err)),
-        'settling_time': [None if s is None or not np.isfinite(s) else float(s)
-                          for s in settling],
+        'settling_time': settling,      # per trial, None when not settled by the end
     }
 
 
