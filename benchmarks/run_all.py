@@ -732,12 +732,23 @@ def write_markdown(path: pathlib.Path, results: dict) -> None:
              f'{m["loadavg_end"][0]:.2f} at the end; {m["date"]}; commit '
              f'`{m["git_commit"][:12]}`{dirty}.'
              + (f' {c["note"]}' if c['note'] else ''), '']
+    # Each section's figures come from the last run that measured it (the JSON keeps
+    # every --update run; the report names only the ones its figures come from).
+    source = {name: u for u in results.get('updates', []) for name in u['sections']}
+    if source:
+        lines += ['Sections measured by a separate `--update` run (the others by the run '
+                  'above):', '']
     for u in results.get('updates', []):
+        names = [name for name in u['sections'] if source[name] is u]
+        if not names:
+            continue
         u_dirty = ' with uncommitted changes' if u['git_dirty'] else ''
-        lines += [f'Re-measured later: {", ".join(u["sections"])}, on {u["date"]} (commit '
-                  f'`{u["git_commit"][:12]}`{u_dirty}; load average '
+        argv = [a for i, a in enumerate(u['argv'])
+                if a != '--note' and (i == 0 or u['argv'][i - 1] != '--note')]
+        lines += [f'{", ".join(names)}: measured on {u["date"]} at commit '
+                  f'`{u["git_commit"][:12]}`{u_dirty} (load average '
                   f'{u["loadavg_start"][0]:.2f} at the start and {u["loadavg_end"][0]:.2f} '
-                  f'at the end) by `run_all.py {shlex.join(u["argv"])}`.'
+                  f'at the end) by `run_all.py {shlex.join(argv)}`.'
                   + (f' {u["note"]}' if u['note'] else ''), '']
     lines += [f'Times are medians of {c["repeats"]} runs (DSDV: {c["dsdv_repeats"]} random '
               'graph(s) per size); sizes scale the thesis scenario (50 agents in '
