@@ -217,10 +217,10 @@ class AgentNode(Node):
         latched, sensor, radio, state = (
             QoSProfile(**profile) for profile in (qos.LATCHED, qos.SENSOR, qos.RADIO, qos.STATE))
         # Frames go out in batches, like the medium's deliveries: one DDS message per
-        # frame was 466 messages a second for 50 agents, more than the simulator's
+        # frame would be 466 messages a second for 50 agents, more than the simulator's
         # executor takes (one message per subscription per wait): measured, half of
-        # the frames were lost in DDS and the assignment consensus broke (agreement
-        # 0.18 on the 50-agent demo).
+        # the frames are then lost in DDS and the assignment consensus breaks
+        # (agreement 0.18 on the 50-agent demo).
         self._command_sink = command_sink
         self._radio = (RadioBatcher(lean_publisher(self, RadioPacketArray, '/radio/tx', radio),
                                     1.0 / p['radio_tx_hz'])

@@ -12,8 +12,8 @@ and polls it after every wait (py-spy on the 50-agent thesis scenario: 77 % of t
 process in the executor, under 10 % in the agents' callbacks):
 
 - With ``use_sim_time`` the agents do not each subscribe to ``/clock``: their clocks are
-  attached to one time source of the container (50 agents at a 50 Hz clock were 2500
-  clock callbacks a second through one executor), and so is the clock of the timers
+  attached to one time source of the container (50 agents at a 50 Hz clock would be
+  2500 clock callbacks a second through one executor), and so is the clock of the timers
   that step them, so an agent never reads an older time than the tick it serves.
 - One timer steps every agent's inner loop (``AgentNode.on_control``), one publishes
   every agent's state, one every agent's routes and one logs every agent's status line,
@@ -111,8 +111,8 @@ class ComposedAgents(Node):
         # of the container's timers that step them. Not the container node's own clock:
         # that one follows its own /clock subscription, and an agent stepped by a timer on
         # it could read a time one message older than the timer's. Measured: a parked
-        # agent then skipped its keepalive command, the world held its clock for it and
-        # the timer never fired again; 10 s (wall) stalls until the world gave up on it.
+        # agent then skips its keepalive command, the world holds its clock for it and
+        # the timer never fires again; 10 s (wall) stalls until the world gives up on it.
         self._time_source = TimeSource(node=self) if use_sim_time else None
         timer_clock = self.get_clock()
         if self._time_source is not None:

@@ -28,15 +28,15 @@
   neighbours cover them, a connected dominating set). On a connected network without
   loss every node still gets every flood (tested). For redundancy against packet loss a
   silent node relays anyway with probability k / (its neighbours), so each neighbourhood
-  hears about k extra copies whatever its density (a fixed share, 15 %, sent 7 extra
-  copies of every cost row around each robot of a 50-robot formation, a third of all
-  frames heard). k adapts to the loss the node sees on its neighbours' heartbeats:
+  hears about k extra copies whatever its density (a fixed share, 15 %, would send 7
+  extra copies of every cost row around each robot of a 50-robot formation, a third of
+  all frames heard). k adapts to the loss the node sees on its neighbours' heartbeats:
   with loss p, a robot that missed the first copy misses all k(1 - p) copies sent by
   robots that got it with probability p^(1 + k(1 - p)); k is the least that keeps this
   under ``flood_miss_target``, and at least ``flood_extra_copies``.
   Measured on the 50-agent thesis scenario (seed 0, to settling): self-pruning with a
-  15 % share delivered 3.99 million frames, this scheme 1.63 million; in the first 60 s
-  flood frames sent fell from 501 to 245 a second.
+  15 % share delivers 3.99 million frames, this scheme 1.63 million; in the first 60 s
+  they send 501 and 245 flood frames a second.
 
 Malformed, truncated or unknown frames are counted in ``stats`` and dropped.
 """
@@ -67,8 +67,9 @@ _HALF = 1 << 31
 def seq_newer(a: int, b: int) -> bool:
     """Serial-number order (RFC 1982) of 32-bit sequence numbers: is ``a`` newer than ``b``?
 
-    Plain ``>`` breaks at the wrap: fuzzing found one advert with 0xFFFFFFFF making a
-    destination unreachable for good, since its real, wrapped numbers looked older.
+    Plain ``>`` breaks at the wrap: one advert with 0xFFFFFFFF (a fuzzing input, in
+    tests/data/fuzz_corpus) would make a destination unreachable for good, since its
+    real, wrapped numbers would look older.
     """
     return 0 < ((a - b) & SEQUENCE_MASK) < _HALF
 
@@ -123,7 +124,7 @@ class RouterOutput:
 
 
 # What most frames cause: nothing. One shared, read-only instance (a fresh dataclass with
-# two lists per frame was a tenth of the router's time in the headless evaluator).
+# two lists per frame would be a tenth of the router's time in the headless evaluator).
 _NOTHING = RouterOutput()
 
 
@@ -153,8 +154,8 @@ class DsdvRouter:
         self._last_incremental = -1e9
         # tick() runs at the control rate (50 Hz) but rarely has work: the earliest time
         # a neighbour can time out, and whether any route changed since the last advert,
-        # are kept so that it does not scan every neighbour and route each call (it was
-        # a tenth of the headless evaluator's time).
+        # are kept so that it does not scan every neighbour and route each call (that
+        # scan would be a tenth of the headless evaluator's time).
         self._next_expiry = math.inf
         self._dirty = False
         self._wake = 0.0   # earliest of the three timers above: before it, tick() is idle
@@ -276,15 +277,15 @@ class DsdvRouter:
         if packet.ttl <= 0:  # swarm_msgs/RadioPacket: a packet with ttl 0 is dropped
             self._count('dropped_ttl')
             return out
-        kind = _KINDS.get(packet.kind)   # (Kind(...) raising was 2 % of a composed swarm)
+        kind = _KINDS.get(packet.kind)   # (Kind(...) raising would be 2 % of a composed swarm)
         if kind is None:
             self._count('rejected_unknown_kind')
             return out
         if kind is _FLOOD and wire.routed_key(packet.payload) in self._seen:
             # Many frames a robot hears are copies of floods it has already handled (28 %
-            # of an agent's frames over a 50-agent thesis trial, 93 % before the
-            # coverage-condition pruning): the drop _on_flood would make, before any
-            # other work.
+            # of an agent's frames over a 50-agent thesis trial; 93 % with self-pruning
+            # and a 15 % relay share): the drop _on_flood would make, before any other
+            # work.
             self._count('duplicates')
             return out
         try:

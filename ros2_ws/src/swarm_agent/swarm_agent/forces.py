@@ -16,9 +16,9 @@ n(C, z_i) (0 or 1), the gains blend linearly across a band of ``buffer`` metres 
 inside the contour: attraction and transition are at their nominal values on and
 outside the contour and fade to zero ``buffer`` metres inside it, the repulsion rises
 from zero on the contour to its nominal value there. The band lies inside because
-eq. 3.84 is singular on the contour: blended into the outside as well, it pushed an
-agent outwards with a 1/d^2 barrier right at the contour, and agents parked just
-outside the shape.
+eq. 3.84 is singular on the contour: blended into the outside as well, it would push
+an agent outwards with a 1/d^2 barrier right at the contour, and agents would park
+just outside the shape.
 
 Inter-member forces (eq. 3.88) act only within ``member_range`` and are shifted so that
 they vanish there continuously: the brain sees its neighbours through the 3 m proximity

@@ -405,12 +405,12 @@ class SimNode(Node):
     def _step_when_answered(self) -> None:
         # As fast as possible and paced by the agents: step as soon as the last of them
         # has answered the current time, not at the next clock_rate_hz tick (on 2 cores
-        # the ticks, not the agents, held 12 agents at 5x real time). Through a guard
-        # condition, so the step runs after the callbacks of this wait: a radio batch
-        # sent with the commands must be on the air before the step delivers (stepping
-        # from this callback delivered it a tick late, once per hop of a flood, and 50
-        # agents' consensus rounds agreed 0.90 instead of 0.99). Only once every agent
-        # has caught up: stepping whenever max_agent_lag_s allowed was no faster.
+        # the ticks, not the agents, would hold 12 agents at 5x real time). Through a
+        # guard condition, so the step runs after the callbacks of this wait: a radio
+        # batch sent with the commands must be on the air before the step delivers
+        # (stepping from this callback delivers it a tick late, once per hop of a flood,
+        # and 50 agents' consensus rounds agree 0.90 instead of 0.99). Only once every
+        # agent has caught up: stepping whenever max_agent_lag_s allows is no faster.
         lag = self.params['max_agent_lag_s']
         if (self._rtf <= 0.0 and lag > 0
                 and self._steps_agents_allow() >= int(lag / self.dt + 1e-9)):
