@@ -12,8 +12,8 @@ unit vector u_j, with gap h_j = d_j - (r_i + r_j + buffer), the commanded veloci
 must satisfy u_j . v <= (rate / 2) h_j, so a pair can close its gap at most at
 ``rate`` times the gap (each robot takes half) and never crosses h = 0 in continuous
 time; a robot inside the buffer (h_j < 0) must back away at (rate / 2) |h_j|. A
-parked robot (setpoint zero) therefore yields to one that comes too close. Before the
-filter, part of the speed towards a close neighbour is turned to the right
+parked robot (setpoint zero) therefore yields to one that comes too close. Ahead of
+the filter, part of the speed towards a close neighbour is turned to the right
 (``swerve``): two robots meeting head-on, or a robot behind a parked one, would
 otherwise stop in front of each other for good.
 """
