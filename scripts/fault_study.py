@@ -258,10 +258,6 @@ def _move_wall(swarm: HeadlessSwarm, t: float) -> None:
     swarm.medium.move_wall(t)
 
 
-def _observe(swarm: HeadlessSwarm, t: float) -> None:
-    """No-op event: a run does not stop before it (observation window after a fault)."""
-
-
 def configure_fault(swarm: HeadlessSwarm, case: dict, config: dict, seed: int
                     ) -> tuple[float, float]:
     """Schedule the case's fault and its observation window; return (first, last) time."""
@@ -280,9 +276,10 @@ def configure_fault(swarm: HeadlessSwarm, case: dict, config: dict, seed: int
             steps = int((plan['last'] - t) / sc.record_period_s) + 1
             events += [(t + k * sc.record_period_s, _move_wall) for k in range(steps + 1)]
     if case['kind'] != 'loss':
-        # A settled swarm would otherwise stop 5 s after the fault, before a lost beacon
-        # or a shorter range has shown its effect on localization.
-        events.append((plan['last'] + config['observe'], _observe))
+        # A swarm settled through the fault would otherwise stop one hold window after
+        # it, before a lost beacon or a shorter range has shown its effect on
+        # localization. Not an event: an event is a change, and restarts the hold.
+        sc.min_duration_s = plan['last'] + config['observe']
     sc.events = events
     return plan['first'], plan['last']
 

@@ -188,3 +188,16 @@ def test_a_ros_run_without_results_is_a_crash(tmp_path):
     assert row['crashed'] == ['launcher'] and not row['passed'] and 'no results' in row['error']
     summary = fault_study.summarise([row], [case])
     assert summary['loss_0']['crashed'] == 1 and summary['loss_0']['passed'] == 0
+
+
+def test_the_observation_window_does_not_restart_the_settled_hold():
+    """Recovery is measured from the fault: the observation window after it keeps the run
+    going (min_duration_s) without being a change. As a scheduled event it ended the
+    settled streak, so no recovery could be shorter than the window."""
+    config = fault_study.study_config(fault_study.parse_args(['--quick', '--out', 'x']))
+    case = next(c for c in fault_study.fault_cases(config['ranges'])
+                if c['name'] == 'beacons_one')
+    swarm = fault_study.build_swarm(case, config, 0)
+    first, last = fault_study.configure_fault(swarm, case, config, 0)
+    assert swarm.scenario.min_duration_s == pytest.approx(last + config['observe'])
+    assert all(t <= last for t, _ in swarm.scenario.events)

@@ -68,6 +68,7 @@ class Scenario:
     proximity_period_s: float = 0.1       # proximity sensor rate (10 Hz); 0: no sensor
     record_period_s: float = 0.5          # truth recording rate (2 Hz)
     settle_hold_s: float = SETTLE_HOLD_S  # run on this long after settling (eq. 4.1 hold)
+    min_duration_s: float = 0.0           # never stop settled before this time (observation)
     localization_period_s: float = 3.0
     sequence: Sequence[SequenceStep] = ()  # further shapes at given times (4.3.4)
     removals: Sequence[tuple[float, Sequence[int]]] = ()  # (time, agent ids) to remove
@@ -298,9 +299,10 @@ class HeadlessSwarm:
                 rec['min_separation'].append(separation.take_interval_min())
                 if progress is not None:
                     progress(t, sc.duration_s)
-                # Never stop before a scheduled shape change, removal or fault.
-                if settle.held(t) and not (pending_shapes or pending_removals
-                                           or pending_events):
+                # Never stop before a scheduled shape change, removal or fault, nor
+                # before the observation time.
+                if settle.held(t) and t >= sc.min_duration_s and not (
+                        pending_shapes or pending_removals or pending_events):
                     break
         return self._finish(rec, wallclock.perf_counter() - wall0, settle, separation)
 
