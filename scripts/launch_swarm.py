@@ -246,7 +246,8 @@ def parse_set_sim(spec: str) -> tuple[float, str, float]:
 
 def validate(args: argparse.Namespace):
     """Check everything before starting anything; return (shape, counts, beacons, fleet)."""
-    from swarm_mission.partition import partition, PartitionError
+    from swarm_mission.mission import Mission, MissionConfig
+    from swarm_mission.partition import PartitionError
     from swarm_mission.robot_types import (
         default_type_counts,
         load_robot_types,
@@ -311,8 +312,18 @@ def validate(args: argparse.Namespace):
                                      for spec in args.move_obstacle)
         types = load_robot_types()
         radii = {t: r.coverage_radius for t, r in types.items()}
-        if args.method != 'forces':
-            partition(shape, counts, radii, args.method, seed=args.seed)
+        fleet = random_fleet(counts, beacons, np.random.default_rng(args.seed),
+                             half_size=args.half_size, obstacles=list(shape.obstacles))
+
+        def plan(candidate) -> None:
+            """Partition as mission_node will: a coverable shape whose every goal keeps
+            three of the fleet's beacons in radio reach (PartitionError names the fix)."""
+            if args.method != 'forces':
+                Mission(MissionConfig(method=args.method, seed=args.seed),
+                        agent_types={r.id: r.type for r in fleet}, radii=radii,
+                        beacons={r.id for r in fleet if r.is_beacon}).set_shape(candidate)
+
+        plan(shape)
         args.last_switch = 0.0
         if args.sequence and args.morph:
             raise LaunchError('give either --sequence or --morph, not both')
@@ -320,23 +331,13 @@ def validate(args: argparse.Namespace):
             from swarm_mission.mission import load_sequence
             for step in load_sequence(args.sequence):
                 args.last_switch = max(args.last_switch, step.time)
-                if args.method != 'forces':
-                    partition(step.shape, counts, radii, args.method, seed=args.seed)
+                plan(step.shape)
         if args.morph:
             from swarm_mission.mission import parse_morph
             final = parse_morph(args.morph, shape)[-1]
             check_before_end('--morph', [final.time], args.duration)
             args.last_switch = final.time
-            if args.method != 'forces':
-                partition(final.shape, counts, radii, args.method, seed=args.seed)
-        fleet = random_fleet(counts, beacons, np.random.default_rng(args.seed),
-                             half_size=args.half_size, obstacles=list(shape.obstacles))
-        if args.method != 'forces':
-            # As mission_node will: every goal needs three of the fleet's beacons in reach.
-            from swarm_mission.mission import Mission, MissionConfig
-            Mission(MissionConfig(method=args.method, seed=args.seed),
-                    agent_types={r.id: r.type for r in fleet}, radii=radii,
-                    beacons={r.id for r in fleet if r.is_beacon}).set_shape(shape)
+            plan(final.shape)
     except (ShapeError, PartitionError, RobotTypeError, ValueError) as exc:
         raise LaunchError(str(exc)) from exc
     check_before_end('--move-obstacle', [t for t, _ in args.obstacle_moves], args.duration)

@@ -163,3 +163,21 @@ def test_a_smooth_shape_change_is_checked_against_the_shape_and_the_run():
         _validate('--morph', 'move:2@90+30', '--duration', '100')
     with pytest.raises(LaunchError, match='either --sequence or --morph'):
         _validate('--morph', 'move:2@20+10', '--sequence', 'tests/data/none.yaml')
+
+
+def test_a_shape_too_long_for_the_beacons_is_refused_naming_the_count(capsys, tmp_path):
+    """An 8 m x 90 m strip: four beacons cannot keep three within 0.9 x 25 m of every goal
+    (swarm_mission.beacon_goals); the line names the fewest beacons that can."""
+    strip = tmp_path / 'strip.json'
+    strip.write_text('{"outer": [[-4, -45], [4, -45], [4, 45], [-4, 45]]}')
+    out = tmp_path / 'run'
+    argv = ['--agents', '16', '--beacons', '4', '--types', '2:16', '--shape', str(strip),
+            '--out', str(out)]
+    assert launch_swarm.main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert '\n' not in err
+    assert err.startswith('launch_swarm.py: shape strip needs at least 6 beacons for a 25 m '
+                          'radio; the fleet has 4: use --beacons 6')
+    assert not out.exists()
+    argv[3] = '6'
+    launch_swarm.validate(launch_swarm.parse_args(argv))
