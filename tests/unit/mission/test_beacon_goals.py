@@ -27,7 +27,7 @@ from swarm_mission.goals import (
     goals_to_json,
     PartitionError,
 )
-from swarm_mission.mission import Mission, MissionConfig
+from swarm_mission.mission import Mission, MissionConfig, morph_sequence
 from swarm_mission.partition import partition
 from swarm_mission.robot_types import load_robot_types
 from swarm_mission.shapes import load_shape, Shape
@@ -266,3 +266,23 @@ def test_beacon_flag_round_trips_json():
     assert goals_from_json(goals_to_json(goals)) == goals
     assert goals_from_json({'goals': [{'x': 0, 'y': 0, 'type': 1, 'radius': 0.1}]})[0] \
         .beacon is False
+
+
+@pytest.mark.parametrize(('kind', 'amount', 'most'), [('move', 15.0, 0), ('rotate', 90.0, 3)])
+def test_a_changing_shape_keeps_its_beacon_goals(kind, amount, most):
+    """Ten re-meshes of a smooth change (4.3.4) with goal ids kept: the beacons stay on
+    their goals while those still serve. A translation keeps every distance, so no beacon
+    goal changes; a quarter turn changes 3 in all (15 when previous goals are not kept)."""
+    agents = {i: t for i, t in enumerate([1] * 6 + [2] * 6 + [3] * 4)}
+    mission = Mission(MissionConfig(seed=0), agent_types=agents, radii=RADII,
+                      beacons={0, 6, 7, 12})
+    assert mission.set_shape(CHEVRON)
+    before = {g.id for g in mission.goals if g.beacon}
+    changed = 0
+    for step in morph_sequence(CHEVRON, kind, amount, start=0.0, duration=20.0, steps=10):
+        assert mission.set_shape(step.shape)
+        now = {g.id for g in mission.goals if g.beacon}
+        assert len(now) == 4
+        changed += len(now - before)
+        before = now
+    assert changed <= most

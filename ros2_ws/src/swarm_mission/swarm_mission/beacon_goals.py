@@ -8,22 +8,23 @@ take goals like every other robot, so where they park decides which goals can be
 on a long shape, a goal far from three beacons is one its robot can never stay on.
 
 ``any_placement_serves`` tells whether beacon goals are needed at all: on a compact
-shape every goal has three beacons in reach wherever they park, and the beacons are
-left free to take the nearest goals. Otherwise ``select_beacon_goals`` marks, for each
-robot type, exactly as many goals as the fleet
-has beacons of that type as *beacon goals* (``Goal.beacon``); the assignment then gives
-beacon goals to beacons only (``swarm_agent.costs.class_costs``). Every goal that is not
-a beacon goal needs ``need`` beacon goals within ``reach * range_m`` and line of sight
-(a beacon goal's own robot has its GPS). The choice is a set multi-cover solved exactly
-as a small integer programme (scipy ``milp``, HiGHS; see ``_solve``): least shortfall
-first, then the most goals with a spare beacon in reach, then the goals that were beacon
-goals before (re-meshing keeps the beacons where they are). Range alone does not make a
-good fix: beacons all on one side of a goal fix it badly across that direction
-(horizontal dilution of precision, HDOP; 3.1.1, eq. 3.17's normal matrix). Swaps of a
-beacon goal for another goal of its type that keep every goal covered and lower the
-worst HDOP over the goals by more than ``HDOP_GAIN`` follow. ``check_localizable``
-refuses a plan that leaves a goal short, with one line naming the fewest beacons of any
-types that would serve the shape's goals (``beacons_needed``, the same programme).
+shape every goal has three beacons in reach wherever they park, and the beacons are left
+free to take the nearest goals. Otherwise ``select_beacon_goals`` marks, for each robot
+type, exactly as many goals as the fleet has beacons of that type as *beacon goals*
+(``Goal.beacon``); the assignment then gives beacon goals to beacons only
+(``swarm_agent.costs.class_costs``). Every goal that is not a beacon goal needs ``need``
+beacon goals within ``reach * range_m`` and line of sight (a beacon goal's own robot has
+its GPS). The choice is a set multi-cover solved exactly as a small integer programme
+(scipy ``milp``, HiGHS; see ``_solve``): least shortfall first, then the goals that were
+beacon goals before (re-meshing a changing shape keeps the beacons where they are), then
+the most goals with a spare beacon in reach. Range alone does not make a good fix:
+beacons all on one side of a goal fix it badly across that direction (horizontal
+dilution of precision, HDOP; the normal matrix U^T U of the range fix, cf. eq. 3.17).
+Swaps of a beacon goal for another goal of its type that keep every goal covered and
+lower the worst HDOP over the goals by more than ``HDOP_GAIN`` follow (a previous beacon
+goal only while the worst HDOP exceeds ``HDOP_LIMIT``). ``check_localizable`` refuses a
+plan that leaves a goal short, with one line naming the fewest beacons of any types that
+would serve the shape's goals (``beacons_needed``, the same programme).
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ MIN_BEACONS = 3       # beacons a 2-D trilateration needs (thesis 3.1.1)
 REACH = 0.9           # fraction of the radio range a goal's beacons may be away
 SOLVER_TIME_LIMIT_S = 10.0
 HDOP_GAIN = 0.05      # a geometry swap must lower the worst HDOP by this fraction
+HDOP_LIMIT = 3.0      # a previous beacon goal is given up for geometry only above this
 
 
 @dataclass(frozen=True)
@@ -92,8 +94,8 @@ def _solve(links: np.ndarray, need: int, types: np.ndarray, quota: Mapping[int, 
     a beacon goal), s (beacons a goal lacks, continuous). Cover of goal j:
     ``sum_i L_ij x_i + need x_j + s_j >= need`` and ``sum_i L_ij x_i + (need + 1) x_j >=
     (need + 1) y_j``. With ``quota`` each type t has exactly ``quota[t]`` beacon goals and
-    the objective is ``W sum s - sum y - e prefer.x`` (W > n, e < 1 / beacons: shortfall
-    first, then spare cover, then staying put); without it the objective is ``sum x`` under
+    the objective is ``W sum s - P prefer.x - sum y`` (P > n, W > P beacons + n: shortfall
+    first, then staying put, then spare cover); without it the objective is ``sum x`` under
     ``s = 0`` (the fewest beacons of any type).
     """
     n = len(types)
@@ -105,7 +107,8 @@ def _solve(links: np.ndarray, need: int, types: np.ndarray, quota: Mapping[int, 
         upper = np.r_[np.ones(n), np.zeros(n), np.zeros(n)]
     else:
         beacons = max(1, sum(quota.values()))
-        c = np.r_[-prefer / (2.0 * (beacons + 1)), -np.ones(n), np.full(n, n + 1.0)]
+        keep = n + 1.0
+        c = np.r_[-keep * prefer, -np.ones(n), np.full(n, keep * (beacons + 2))]
         upper = np.r_[np.ones(n), np.ones(n), np.full(n, float(need))]
     constraints = [
         LinearConstraint(np.hstack([cover + need * eye, zeros, eye]), lb=need),
@@ -149,9 +152,11 @@ def hdop(points: np.ndarray, links: np.ndarray, chosen: np.ndarray) -> np.ndarra
 
 
 def _improve_geometry(points: np.ndarray, links: np.ndarray, chosen: np.ndarray,
-                      types: np.ndarray, need: int) -> np.ndarray:
+                      types: np.ndarray, need: int, keep: np.ndarray) -> np.ndarray:
     """Best-improvement swaps (beacon goal for a goal of its type) that keep every covered
-    goal covered and lower the worst HDOP by more than ``HDOP_GAIN``."""
+    goal covered and lower the worst HDOP by more than ``HDOP_GAIN``; a goal of ``keep``
+    (a beacon goal before) is swapped out only while the worst HDOP exceeds
+    ``HDOP_LIMIT``, so a changing shape does not shuffle the beacons."""
     chosen = chosen.copy()
 
     def score(mask: np.ndarray) -> tuple[int, float]:
@@ -163,7 +168,7 @@ def _improve_geometry(points: np.ndarray, links: np.ndarray, chosen: np.ndarray,
     best = score(chosen)
     for _ in range(4 * int(chosen.sum()) + 1):
         move, value = None, best
-        for b in np.flatnonzero(chosen):
+        for b in np.flatnonzero(chosen & ~(keep & (best[1] <= HDOP_LIMIT))):
             for c in np.flatnonzero(~chosen & (types == types[b])):
                 chosen[b], chosen[c] = False, True
                 trial = score(chosen)
@@ -226,9 +231,9 @@ def select_beacon_goals(goals: Sequence[Goal], beacons: Mapping[int, int], range
                                  'goals of that type; give each type at most one beacon '
                                  'per robot')
     wanted = set(prefer)
-    chosen = _solve(links, need, types, quota,
-                    np.array([g.id in wanted for g in goals], dtype=float))
-    chosen = _improve_geometry(goal_positions(goals), links, chosen, types, need)
+    keep = np.array([g.id in wanted for g in goals])
+    chosen = _solve(links, need, types, quota, keep.astype(float))
+    chosen = _improve_geometry(goal_positions(goals), links, chosen, types, need, keep)
     cover = links[chosen].sum(axis=0)
     uncovered = tuple(g.id for g, c, b in zip(goals, cover, chosen) if not b and c < need)
     marked = [replace(g, beacon=bool(b)) for g, b in zip(goals, chosen)]
