@@ -167,8 +167,12 @@ def _detours(record: TrialRecord, limit: int = 3) -> dict:
     straight = np.linalg.norm(pos[-1] - pos[0], axis=1)
     detour = path - straight
     order = np.argsort(-detour)[:limit]
+    unfixed = (modes > 0).any(axis=0)
     return {'path_m': float(path.sum()), 'straight_m': float(straight.sum()),
             'path_without_fix_m': float(steps[modes[:-1] > 0].sum()),
+            'detour_m': float(detour.sum()),
+            'detour_of_agents_ever_without_fix_m': float(detour[unfixed].sum()),
+            'agents_ever_without_fix': int(unfixed.sum()),
             'longest_detours': [{'agent': int(i), 'type': int(record.types[i]),
                                  'path_m': float(path[i]), 'straight_m': float(straight[i]),
                                  'seconds_without_fix': float(np.count_nonzero(
