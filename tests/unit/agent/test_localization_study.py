@@ -102,6 +102,8 @@ def test_study_in_range_reports_metrics_per_period(noise):
         assert stats['lost_or_home_share'] == 0.0
         assert 0.0 < stats['rms_error'] <= stats['max_error'], stats
         assert 0.0 < stats['p95_error'] <= stats['max_error'], stats
+        [worst] = stats['worst_per_trial']
+        assert worst['seed'] == 0 and worst['error'] <= stats['max_error']
         times, err = curves[key]
         assert err.shape == (len(times), 4) and times[-1] == 12.0   # the whole duration
         assert np.all(np.isnan(err[times < float(key)]))   # nothing before the first fix

@@ -102,6 +102,7 @@ class TrialResult:
     """One trial: the 2 Hz record, and per non-beacon agent its probe's findings."""
 
     record: TrialRecord
+    seed: int
     period: float                        # localization period (s)
     agents: np.ndarray                   # (M,) indices of the non-beacon agents
     first_fix: np.ndarray                # (M,) time of the first fix, inf when none
@@ -171,7 +172,7 @@ def run_trial(period: float, noise: str, seed: int, duration: float,
         probes.append(probe)
     record = swarm.run()
     return TrialResult(
-        record=record, period=period, agents=agents,
+        record=record, seed=seed, period=period, agents=agents,
         first_fix=np.array([np.inf if p.first_fix is None else p.first_fix for p in probes]),
         pre_tick_errors=[np.array(p.pre_tick_errors) for p in probes],
         fixes=sum(p.fixes for p in probes), misses=sum(p.misses for p in probes))
@@ -191,7 +192,8 @@ def error_samples(trial: TrialResult) -> tuple[np.ndarray, np.ndarray]:
 
 def steady_mask(trial: TrialResult, periods: float = 3.0) -> np.ndarray:
     """(T, M): the agent has been NORMAL at every record sample of the last ``periods``
-    localization periods (so it has fixed at least that many times in a row)."""
+    localization periods: it missed no tick (a fix the filter gates leaves the mode as
+    it is, so NORMAL does not mean every fix was used)."""
     rec = trial.record
     normal = (rec.modes[:, trial.agents] == Mode.NORMAL) & rec.alive[:, trial.agents]
     run = np.full(normal.shape, -1.0)
@@ -211,7 +213,7 @@ def summarize(trials: Sequence[TrialResult]) -> dict:
     RETURN_HOME, whose grown covariance lets the first fix move them almost all the way).
     """
     samples, pre, lost, home, never = [], [], [], [], 0
-    steady, reacquiring = [], []
+    steady, reacquiring, worst = [], [], []
     for trial in trials:
         err, p = error_samples(trial)
         samples.append(err[np.isfinite(err)])
@@ -224,6 +226,11 @@ def summarize(trials: Sequence[TrialResult]) -> dict:
         lost.append(np.sum((modes == Mode.LOST) & alive) / max(alive.sum(), 1))
         home.append(np.sum((modes == Mode.RETURN_HOME) & alive) / max(alive.sum(), 1))
         never += int(np.sum(~np.isfinite(trial.first_fix)))
+        if np.isfinite(err).any():
+            k, j = np.unravel_index(np.nanargmax(err), err.shape)
+            worst.append({'seed': trial.seed, 'agent': int(trial.agents[j]),
+                          'time': float(trial.record.times[k]), 'error': float(err[k, j]),
+                          'steady': bool(mask[k, j])})
     err = np.concatenate(samples)
     pre_all = np.concatenate(pre)
     steady_err = np.concatenate(steady)
@@ -251,6 +258,7 @@ def summarize(trials: Sequence[TrialResult]) -> dict:
         'fix_share': fixes / ticks if ticks else nan,
         'agents_never_fixed': never,
         'samples': int(len(err)),
+        'worst_per_trial': worst,       # the largest recorded error of each trial
         'settling_time': settling,      # per trial, None when not settled by the end
     }
 
