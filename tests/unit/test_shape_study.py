@@ -94,3 +94,10 @@ def test_bearing_spread_is_the_smallest_sector_holding_every_beacon():
     huddled = here + 20 * np.column_stack([np.cos(rad), np.sin(rad)])   # across 0 deg
     assert bearing_spread(here, huddled) == pytest.approx(30.0)
     assert bearing_spread(here, huddled[:1]) is None
+
+
+def test_a_shape_the_mission_refuses_at_the_start_is_a_refused_row():
+    # 90 x 8 m: four beacons with a 25 m radio cannot give every goal three.
+    strip = shape_from_polygon(box(-45, -4, 45, 4), name='strip')
+    row = run_trial(StudyTrial(strip, 'concave', 'bubble', n_beacons=4, duration_s=2.0))
+    assert row['status'] == 'refused' and 'beacons' in row['note']

@@ -32,6 +32,7 @@ from shapely.geometry import LineString
 
 from swarm_agent.localization import Mode
 from swarm_mission.coverability import coverability_problem
+from swarm_mission.goals import PartitionError
 from swarm_mission.robot_types import load_robot_types
 from swarm_mission.shapes import Shape, ShapeError
 from swarm_sim.headless import HeadlessSwarm, Scenario, TrialRecord
@@ -280,7 +281,7 @@ def run_trial(trial: StudyTrial) -> dict:
                         seed=trial.seed, duration_s=trial.duration_s)
     try:
         record = HeadlessSwarm(scenario).run()
-    except ShapeError as exc:
+    except (ShapeError, PartitionError) as exc:   # the mission refused the shape
         return _row(trial, 'refused', str(exc))
     except Exception as exc:   # a failing trial is a row, never a lost shape
         last = traceback.extract_tb(exc.__traceback__)[-1]
