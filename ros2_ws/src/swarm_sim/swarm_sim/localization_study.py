@@ -143,10 +143,6 @@ class StudyConfig:
             raise StudyError(f'fix noise must be positive, got {self.fix_std_m} m')
 
 
-def _nothing(swarm: HeadlessSwarm, t: float) -> None:
-    """An event that changes nothing."""
-
-
 def run_trial(period: float, noise: str, seed: int, duration: float,
               config: StudyConfig | None = None) -> TrialResult:
     """One headless run of the scenario with localization period ``period``."""
@@ -156,9 +152,8 @@ def run_trial(period: float, noise: str, seed: int, duration: float,
         type_counts=default_type_counts(config.agents), n_beacons=config.beacons,
         seed=seed, duration_s=duration, imu_period_s=config.imu_period_s,
         localization_period_s=period, half_size=config.half_size,
-        # A run ends once settled; an event scheduled after its end keeps it going to the
-        # duration, so the parked agents count too.
-        events=[(duration + 1.0, _nothing)], **config.extra)
+        min_duration_s=duration,          # parked agents count too: no early end
+        **config.extra)
     swarm = HeadlessSwarm(scenario)
     fix_rng = np.random.default_rng([seed, 0x10C])
     fix_model = (TrilaterationFixModel(fix_rng, std=config.fix_std_m)
