@@ -53,6 +53,11 @@ def test_silent_agents_are_declared_lost_and_survivors_repartitioned():
     assert len(m.goals) == 8
     assert sum(g.type == 3 for g in m.goals) == 1
     assert m.check_liveness(3.5) == []
+    # Agent 9 was only out of the mesh (behind an obstacle): heard again, it gets a goal.
+    m.agent_seen(9, 4.0)
+    assert m.check_liveness(4.0) == [] and 9 in m.alive and 9 not in m.lost
+    assert m.goal_version == 3 and len(m.goals) == 9
+    assert m.check_liveness(4.5) == [] and m.goal_version == 3
 
 
 def test_sequence_file_is_read_and_validated(tmp_path):

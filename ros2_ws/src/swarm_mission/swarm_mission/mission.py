@@ -206,6 +206,7 @@ class Mission:
     alive: set[int] = field(default_factory=set)
     lost: set[int] = field(default_factory=set)
     _last_seen: dict[int, float] = field(default_factory=dict)
+    _lost_at: dict[int, float] = field(default_factory=dict)
     events: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -302,18 +303,32 @@ class Mission:
             self._last_seen[agent_id] = t
 
     def check_liveness(self, t: float) -> list[int]:
-        """Declare agents silent for too long lost; re-partition if any; return them."""
+        """Declare agents silent for too long lost, and take back lost agents heard again
+        since (an agent out of the mesh behind an obstacle is alive); re-partition if
+        either happened. Returns the newly lost agents."""
         newly_lost = [a for a in sorted(self.alive)
                       if a in self._last_seen
                       and t - self._last_seen[a] > self.config.agent_timeout_s]
-        if not newly_lost:
+        rejoined = [a for a in sorted(self.lost)
+                    if self._last_seen.get(a, -math.inf) > self._lost_at.get(a, math.inf)]
+        if not newly_lost and not rejoined:
             return []
-        self.alive -= set(newly_lost)
-        self.lost |= set(newly_lost)
-        self.events.append(f't={t:.1f} s: agents {newly_lost} lost')
-        LOG.warning(self.events[-1])
+        reasons = []
+        if newly_lost:
+            self.alive -= set(newly_lost)
+            self.lost |= set(newly_lost)
+            self._lost_at.update({a: t for a in newly_lost})
+            self.events.append(f't={t:.1f} s: agents {newly_lost} lost')
+            LOG.warning(self.events[-1])
+            reasons.append(f'losing {newly_lost}')
+        if rejoined:
+            self.alive |= set(rejoined)
+            self.lost -= set(rejoined)
+            self.events.append(f't={t:.1f} s: agents {rejoined} heard again')
+            LOG.warning(self.events[-1])
+            reasons.append(f'hearing {rejoined} again')
         if self.config.repair and self.alive:
-            self.repartition(reason=f'self-repair after losing {newly_lost}')
+            self.repartition(reason='self-repair after ' + ' and '.join(reasons))
         return newly_lost
 
 
