@@ -661,14 +661,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.sequence:
         mission_params['sequence_file'] = str(pathlib.Path(args.sequence).resolve())
     children.start('mission', ['-m', 'swarm_mission.mission_node', *ros_args(mission_params)])
-    start_agents(children, args, fleet, fleet_file, counts)
-
     mode = 'composed' if args.composed else 'per-process'
-    print(f'launch_swarm: {args.agents} agents ({mode}), {beacons} beacons, {args.method} '
-          f'on {args.shape}, domain {domain}, logs in {out / "logs"}', flush=True)
-    if len(args.local_ids) < args.agents:
-        print(f'launch_swarm: agents {args.local_agents} start here, the others on hosts '
-              f'{_peers()}', flush=True)
     wall0 = time.monotonic()
     peak_rss = peak_pss = 0
     pss_due = 0.0
@@ -678,6 +671,14 @@ def main(argv: list[str] | None = None) -> int:
     started = None  # (wall seconds, sim seconds) when every agent had been heard
     t = 0.0
     try:
+        # Inside the try: a SIGTERM while the agents start stops the run like one later.
+        start_agents(children, args, fleet, fleet_file, counts)
+        print(f'launch_swarm: {args.agents} agents ({mode}), {beacons} beacons, '
+              f'{args.method} on {args.shape}, domain {domain}, logs in {out / "logs"}',
+              flush=True)
+        if len(args.local_ids) < args.agents:
+            print(f'launch_swarm: agents {args.local_agents} start here, the others on '
+                  f'hosts {_peers()}', flush=True)
         while True:
             time.sleep(0.5)
             status = monitor.live_status()
