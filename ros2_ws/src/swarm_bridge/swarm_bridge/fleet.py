@@ -85,3 +85,29 @@ def load_fleet(path: str | pathlib.Path | None = None) -> list[Robot]:
         if dupes:
             raise FleetError(f'{path}: duplicate {key} {dupes}; every robot needs its own')
     return robots
+
+
+def load_cover_colors(path: str | pathlib.Path | None = None) -> dict[str, tuple[int, int, int]]:
+    """The fleet file's ``cover_colors``: colour name -> RGB 0-255 (thesis 5.1, Fig. 5.2).
+
+    Every robot's ``color`` must be listed; a fleet file without the section gets the
+    package defaults for the names it uses.
+    """
+    path = pathlib.Path(path) if path else default_fleet_path()
+    robots = load_fleet(path)
+    doc = yaml.safe_load(path.read_text()) or {}
+    table = doc.get('cover_colors') if isinstance(doc, dict) else None
+    if table is None and path != DEFAULT_FLEET and DEFAULT_FLEET.exists():
+        table = (yaml.safe_load(DEFAULT_FLEET.read_text()) or {}).get('cover_colors')
+    table = table or {}
+    colors = {}
+    for name, rgb in table.items():
+        if (not isinstance(rgb, (list, tuple)) or len(rgb) != 3
+                or not all(isinstance(v, (int, float)) and 0 <= v <= 255 for v in rgb)):
+            raise FleetError(f'{path}: cover_colors {name}: give [r, g, b] with 0-255 values')
+        colors[str(name)] = tuple(int(v) for v in rgb)
+    unknown = sorted({r.color for r in robots} - set(colors))
+    if unknown:
+        raise FleetError(f'{path}: robot colours {unknown} are not in cover_colors; add '
+                         'their RGB values there')
+    return colors
