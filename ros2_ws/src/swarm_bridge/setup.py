@@ -28,6 +28,8 @@ setup(
             'robot_emulator = swarm_bridge.emulator:main',
             'hil_world_node = swarm_bridge.hil_world_node:main',
             'hw_agent_node = swarm_bridge.hw_agent_node:main',
+            'camera_tracker_node = swarm_bridge.camera_tracker_node:main',
+            'camera_calibrate = swarm_bridge.camera_calibrate:main',
         ],
     },
 )
