@@ -15,6 +15,14 @@ poses, which ``hil_world_node`` publishes as the overhead camera (/agent_K/pose)
 agents' mesh frames travel through the simulator's radio medium between those poses
 (``swarm_bridge.hil_mesh``: range, line of sight, loss, airtime, latency; ``--radio-loss``).
 
+Camera (``--camera``): ``truth`` (default) publishes the boards' poses as the camera;
+``sim`` renders the arena from above (swarm_bridge.camera_render: covers, floor, corner
+markers, light, blur, noise, latency), calibrates on the rendered corner markers and
+runs ``camera_tracker_node``, whose poses close the loop; a device (``/dev/videoN``) or
+a video file runs the real robots: no emulator, ``bridge_node`` on ``--port``, the tracker
+on the camera with ``--calibration`` (written by ``camera_calibrate``). Metrics use the
+boards' true poses (/truth/agent_K/pose) when emulated, the tracker's otherwise.
+
 Per shape the run starts when the mission node announces the shape (t = 0) and ends once
 every robot has stayed inside the shape and slower than 0.01 m/s (eq. 5.4) for
 ``--settle-hold`` seconds, or after ``--duration`` seconds. Reported next to thesis
@@ -49,6 +57,7 @@ BRIDGE = ROOT / 'ros2_ws' / 'src' / 'swarm_bridge'
 HIL_CONFIG = BRIDGE / 'config' / 'hil.yaml'
 HW_TYPES = BRIDGE / 'config' / 'hw_robot_types.yaml'
 HW_AGENT = BRIDGE / 'config' / 'hw_agent.yaml'
+CAMERA_CONFIG = BRIDGE / 'config' / 'camera.yaml'
 SETTLE_SPEED = 0.01       # m/s, eq. 5.4
 SPEED_WINDOW = 0.5        # s: camera speed = displacement over this window / window
 GRID_HZ = 10.0            # common time grid of the recorded camera tracks
@@ -67,6 +76,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument('--radio-loss', type=float, default=None,
                    help="per-receiver frame loss of the agents' mesh, 0..1 "
                         '(default: config/hil.yaml)')
+    p.add_argument('--camera', default='truth',
+                   help='truth, sim (rendered camera + tracker), or a V4L2 device / video '
+                        'file for real robots')
+    p.add_argument('--calibration', default=None,
+                   help='camera calibration YAML (camera_calibrate) for a real camera')
+    p.add_argument('--port', default='/dev/ttyUSB0',
+                   help='serial port of the coordinator XBee for real robots')
     p.add_argument('--domain', type=int, default=None, help='first ROS_DOMAIN_ID (default: free)')
     p.add_argument('--no-plot', action='store_true', help='skip the PNG figures')
     args = p.parse_args(argv)
@@ -76,6 +92,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         p.error('--duration must be positive and --settle-hold non-negative')
     if args.radio_loss is not None and not 0.0 <= args.radio_loss <= 1.0:
         p.error(f'--radio-loss {args.radio_loss}: give a probability between 0 and 1')
+    if args.camera not in ('truth', 'sim') and not args.calibration:
+        p.error(f'--camera {args.camera}: give --calibration FILE (run camera_calibrate '
+                f'--source {args.camera} --out FILE first)')
     return args
 
 
@@ -148,7 +167,7 @@ def _point(p):
 class Monitor:
     """In-process node recording camera poses, agent states and the shape announcement."""
 
-    def __init__(self, ids: list[int]) -> None:
+    def __init__(self, ids: list[int], pose_topic: str = '/agent_{k}/pose') -> None:
         from geometry_msgs.msg import PoseStamped, Twist
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
@@ -167,7 +186,7 @@ class Monitor:
         self.shape_time: float | None = None
         for k in ids:
             self.node.create_subscription(
-                PoseStamped, f'/agent_{k}/pose', lambda m, k=k: self._on_pose(k, m),
+                PoseStamped, pose_topic.format(k=k), lambda m, k=k: self._on_pose(k, m),
                 QoSProfile(**qos.SENSOR))
             self.node.create_subscription(
                 AgentState, f'/agent_{k}/state', lambda m, k=k: self._on_state(k, m),
@@ -246,6 +265,16 @@ def hil_poses() -> tuple[dict, list[tuple[float, float, float]]]:
     return params, initial_poses([float(v) for v in params['initial_poses']], len(robots))
 
 
+def sim_calibration(params: dict, path: pathlib.Path) -> pathlib.Path:
+    """Calibrate the rendered camera of config/hil.yaml on its corner markers, as a user
+    calibrates a real one (camera_calibrate), and write it to ``path``."""
+    from swarm_bridge.arena_calibration import calibrate
+    from swarm_bridge.camera_render import CameraRenderer, sim_camera_config
+
+    calibrate(CameraRenderer(sim_camera_config(params)).render([])).save(path)
+    return path
+
+
 def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: int) -> dict:
     """Run one shape through the ROS processes; return its metrics."""
     from swarm_bridge.fleet import load_fleet
@@ -271,23 +300,36 @@ def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: in
     os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     children = Children(run_dir / 'logs', env)
     ids = [r.agent_id for r in robots]
-    monitor = Monitor(ids)
+    real = args.camera not in ('truth', 'sim')
+    monitor = Monitor(ids, '/agent_{k}/pose' if real else '/truth/agent_{k}/pose')
     outcome = 'duration'
     t_start = None
     try:
-        world = {'port_link': str(link)}
-        if args.camera_noise is not None:
-            world['camera_noise_m'] = float(args.camera_noise)
-        if args.radio_loss is not None:
-            world['radio_loss'] = float(args.radio_loss)
-        # the file first: later -p overrides win
-        children.start('hil_world', ['-m', 'swarm_bridge.hil_world_node', '--ros-args',
-                                     '--params-file', str(HIL_CONFIG),
-                                     *ros_args(world)[1:]])
-        _wait(lambda: link.exists(), 20.0, 'the emulated robots (hil_world) never came up',
-              children)
+        if not real:
+            world = {'port_link': str(link), 'camera': 'image' if args.camera == 'sim'
+                     else 'truth'}
+            if args.camera_noise is not None:
+                world['camera_noise_m'] = float(args.camera_noise)
+            if args.radio_loss is not None:
+                world['radio_loss'] = float(args.radio_loss)
+            # the file first: later -p overrides win
+            children.start('hil_world', ['-m', 'swarm_bridge.hil_world_node', '--ros-args',
+                                         '--params-file', str(HIL_CONFIG),
+                                         *ros_args(world)[1:]])
+            _wait(lambda: link.exists(), 20.0, 'the emulated robots (hil_world) never came up',
+                  children)
+        if args.camera != 'truth':
+            tracker = {'calibration_file': args.calibration or str(
+                sim_calibration(params, run_dir / 'camera_calibration.yaml')),
+                'initial_poses': [v for x, y, yaw in poses
+                                  for v in (x, y, math.degrees(yaw))]}
+            if real:
+                tracker['source'] = args.camera
+            children.start('camera_tracker', [
+                '-m', 'swarm_bridge.camera_tracker_node', '--ros-args', '--params-file',
+                str(CAMERA_CONFIG), *ros_args(tracker)[1:], '-r', 'image:=/camera/image_raw'])
         children.start('bridge', ['-m', 'swarm_bridge.bridge_node',
-                                  *ros_args({'port': str(link)})])
+                                  *ros_args({'port': args.port if real else str(link)})])
         for robot, (x, y, _) in zip(robots, poses):
             agent = ros_args({'agent_id': robot.agent_id, 'agent_type': robot.type,
                               'initial_x': x, 'initial_y': y, 'seed': robot.agent_id,
@@ -351,7 +393,7 @@ def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: in
     robot_types = np.array([r.type for r in robots])
     metrics = analyse(times, positions, shape, robot_types, goals, radii, args.settle_hold)
     metrics.update(
-        shape=name, outcome=outcome, thesis_table=THESIS_TABLE[name],
+        shape=name, outcome=outcome, camera=args.camera, thesis_table=THESIS_TABLE[name],
         thesis_total_displacement=THESIS[name][0], thesis_settling_time=THESIS[name][1],
         initial_poses=[list(p) for p in poses],
         final_positions=positions[-1].tolist(),

@@ -81,6 +81,19 @@ class Cover:
     yaw: float
 
 
+def sim_camera_config(params: dict) -> CameraConfig:
+    """The synthetic camera of the hardware-in-the-loop world from hil_world_node's
+    parameters (config/hil.yaml: camera_rate_hz, camera_latency_s, camera_brightness,
+    camera_gradient, camera_blur_px, camera_image_noise, camera_seed)."""
+    return CameraConfig(rate_hz=float(params['camera_rate_hz']),
+                        latency_s=float(params['camera_latency_s']),
+                        brightness=float(params['camera_brightness']),
+                        gradient=float(params['camera_gradient']),
+                        blur_sigma_px=float(params['camera_blur_px']),
+                        noise_std=float(params['camera_image_noise']),
+                        seed=int(params['camera_seed']))
+
+
 def camera_homography(cfg: CameraConfig) -> np.ndarray:
     """The synthetic camera's arena -> pixel homography (3x3)."""
     s = (cfg.height / 2.0) / cfg.view_half_m

@@ -6,9 +6,15 @@ Stands for everything outside the software under test:
   of firmware twins on a pseudo-terminal (bridge_node's ``port``; the node links the pty
   to ``port_link`` so a launcher knows it before starting the bridge). Each board
   integrates its own half-steps into a pose (forward kinematics of eqs. 5.1-5.3);
-- the overhead E/O camera of thesis 5.1: publishes every robot's pose as
-  ``/agent_K/pose`` (geometry_msgs/PoseStamped, map frame, yaw counter-clockwise) at
-  ``camera_rate_hz``, optionally with Gaussian noise (``camera_noise_m``, seeded);
+- the overhead E/O camera of thesis 5.1, at ``camera_rate_hz``. With ``camera: truth``
+  it publishes every robot's pose as ``/agent_K/pose`` (geometry_msgs/PoseStamped, map
+  frame, yaw counter-clockwise), optionally with Gaussian noise (``camera_noise_m``,
+  seeded). With ``camera: image`` it renders the arena from above instead
+  (:mod:`swarm_bridge.camera_render`: covers, floor, corner markers, lighting gradient,
+  blur, noise; ``camera_*`` parameters) and publishes the frame on
+  ``/camera/image_raw`` (sensor_msgs/Image bgr8, stamped at capture) ``camera_latency_s``
+  after its capture: camera_tracker_node turns it into ``/agent_K/pose``. Either way the
+  boards' true poses go to ``/truth/agent_K/pose`` (metrics only; no agent reads them);
 - the XBee mesh between the agents (Fig. 5.1): a frame on ``/radio/tx`` goes through
   the simulator's radio medium (``swarm_bridge.hil_mesh``: range, line of sight,
   per-receiver loss, airtime and latency, ``radio_*`` parameters whose defaults are
@@ -36,11 +42,15 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+from rclpy.time import Time
+from sensor_msgs.msg import Image
 
 from swarm_agent.conversions import frames_or_log, frames_to_msg
+from swarm_bridge.camera_render import CameraRenderer, Cover, sim_camera_config, SimCamera
 from swarm_bridge.emulator import EmulatedRadio, PtyEmulator
-from swarm_bridge.fleet import load_fleet
+from swarm_bridge.fleet import load_cover_colors, load_fleet
 from swarm_bridge.hil_mesh import HilMesh
+from swarm_bridge.image_msgs import image_to_msg
 from swarm_mission import qos
 from swarm_msgs.msg import RadioPacketArray
 from swarm_sim.medium import MediumConfig
@@ -54,6 +64,13 @@ PARAMETERS = {
     'camera_rate_hz': (10.0, 'Rate of the overhead camera poses'),
     'camera_noise_m': (0.0, 'Standard deviation of the camera position noise, m'),
     'camera_seed': (0, 'Seed of the camera noise'),
+    'camera': ('truth', "truth: publish the boards' poses on /agent_K/pose; image: render "
+                        'the overhead camera on /camera/image_raw for camera_tracker_node'),
+    'camera_latency_s': (0.05, 'Rendered camera: capture to publication, s'),
+    'camera_brightness': (1.0, 'Rendered camera: overall light (0.3 dim .. 1.3 bright)'),
+    'camera_gradient': (0.3, 'Rendered camera: light falls by this fraction across the image'),
+    'camera_blur_px': (0.9, 'Rendered camera: lens blur, Gaussian sigma in pixels'),
+    'camera_image_noise': (2.0, 'Rendered camera: sensor noise, 8-bit digital numbers'),
     'pump_period': (0.005, 'Seconds between serial transfers and board time steps'),
     'relay_radio': (True, 'Carry /radio/tx frames to the agents through the radio medium'),
     'radio_loss': (MEDIUM.loss, 'Per-receiver frame loss probability of the mesh'),
@@ -104,8 +121,23 @@ class HilWorldNode(Node):
             self._link.symlink_to(self.emulator.port)
         self._rng = np.random.default_rng(p['camera_seed'])
         sensor, radio = QoSProfile(**qos.SENSOR), QoSProfile(**qos.RADIO)
-        self._pose_pubs = {k: self.create_publisher(PoseStamped, f'/agent_{k}/pose', sensor)
-                           for k in self.boards}
+        if p['camera'] not in ('truth', 'image'):
+            raise ValueError(f'camera {p["camera"]!r}: use truth or image')
+        self._sim_camera = None
+        self._pose_pubs = {}
+        if p['camera'] == 'image':
+            colors = load_cover_colors(p['fleet_file'] or None)
+            self._covers = {r.agent_id: (colors[r.color], r.radius) for r in self.robots}
+            self._sim_camera = SimCamera(CameraRenderer(sim_camera_config(p)))
+            self._image_pub = self.create_publisher(
+                Image, '/camera/image_raw', QoSProfile(depth=1, reliability=2, durability=2))
+        else:
+            self._pose_pubs = {k: self.create_publisher(PoseStamped, f'/agent_{k}/pose',
+                                                        sensor)
+                               for k in self.boards}
+        self._truth_pubs = {k: self.create_publisher(PoseStamped, f'/truth/agent_{k}/pose',
+                                                     sensor)
+                            for k in self.boards}
         self._rx_pubs = {k: self.create_publisher(RadioPacketArray, f'/agent_{k}/radio/rx',
                                                   radio)
                          for k in self.boards}
@@ -122,21 +154,28 @@ class HilWorldNode(Node):
         self.emulator.pump(now)
         if self._mesh is not None:
             self._deliver(now)
+        if self._sim_camera is not None:
+            clock = self.get_clock().now().nanoseconds
+            for captured, image in self._sim_camera.ready(clock * 1e-9):
+                stamp = Time(nanoseconds=int(captured * 1e9)).to_msg()
+                self._image_pub.publish(image_to_msg(image, stamp, 'camera'))
 
     def _camera(self) -> None:
-        stamp = self.get_clock().now().to_msg()
+        now = self.get_clock().now()
+        stamp = now.to_msg()
         noise = self.params['camera_noise_m']
+        covers = []
         for k, board in self.boards.items():
             x, y, yaw = board.pose()
+            self._truth_pubs[k].publish(_pose_msg(x, y, yaw, stamp))
+            if self._sim_camera is not None:
+                covers.append(Cover(self._covers[k][0], self._covers[k][1], x, y, yaw))
+                continue
             if noise > 0.0:
                 x, y = np.array([x, y]) + self._rng.normal(0.0, noise, 2)
-            msg = PoseStamped()
-            msg.header.stamp = stamp
-            msg.header.frame_id = 'map'
-            msg.pose.position.x, msg.pose.position.y = float(x), float(y)
-            msg.pose.orientation.z = math.sin(yaw / 2.0)
-            msg.pose.orientation.w = math.cos(yaw / 2.0)
-            self._pose_pubs[k].publish(msg)
+            self._pose_pubs[k].publish(_pose_msg(x, y, yaw, stamp))
+        if self._sim_camera is not None:
+            self._sim_camera.capture(now.nanoseconds * 1e-9, covers)
         if self._mesh is not None:
             self._move_mesh()
 
@@ -166,6 +205,16 @@ class HilWorldNode(Node):
         if self._link is not None and self._link.is_symlink():
             self._link.unlink(missing_ok=True)
         self.emulator.close()
+
+
+def _pose_msg(x: float, y: float, yaw: float, stamp) -> PoseStamped:
+    msg = PoseStamped()
+    msg.header.stamp = stamp
+    msg.header.frame_id = 'map'
+    msg.pose.position.x, msg.pose.position.y = float(x), float(y)
+    msg.pose.orientation.z = math.sin(yaw / 2.0)
+    msg.pose.orientation.w = math.cos(yaw / 2.0)
+    return msg
 
 
 def main(args: list[str] | None = None) -> int:
