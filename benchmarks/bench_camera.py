@@ -1,0 +1,96 @@
+#!/usr/bin/env python3
+"""Frames per second of the overhead camera tracker (thesis 5.1): 5 robots at 640 x 480.
+
+Renders ``--frames`` frames of the five robots of Table 5.1 moving in the arena
+(swarm_bridge.camera_render, default synthetic camera: light gradient, blur, noise) at
+each ``--brightness``, then times ``CameraTracker.update`` alone on them (rendering is
+not counted; it is reported apart, as the hardware-in-the-loop world pays it). Prints one
+line per brightness and writes bench_camera.json into --out when given. Issue 25's target:
+at least 30 frames per second.
+
+  scripts/env.sh python benchmarks/bench_camera.py --frames 200
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import pathlib
+import sys
+import time
+
+import numpy as np
+
+from swarm_bridge.arena_calibration import calibrate
+from swarm_bridge.camera_render import CameraConfig, CameraRenderer, Cover
+from swarm_bridge.camera_tracker import CameraTracker
+from swarm_bridge.fleet import load_cover_colors, load_fleet
+
+
+def bench(frames: int, brightness: float, width: int = 640, height: int = 480) -> dict:
+    """Track ``frames`` rendered frames of 5 robots on circles; seconds per frame."""
+    robots = load_fleet()
+    colors = load_cover_colors()
+    renderer = CameraRenderer(CameraConfig(width=width, height=height, brightness=brightness,
+                                           noise_std=3.0, blur_sigma_px=1.0))
+    calibration = calibrate(renderer.render([]))
+    images, truth = [], []
+    t0 = time.perf_counter()
+    for f in range(frames):
+        poses = []
+        for i, _ in enumerate(robots):
+            a = 2 * math.pi * i / len(robots) + 0.01 * f
+            poses.append((0.55 * math.cos(a), 0.55 * math.sin(a), a + math.pi / 2))
+        truth.append(poses)
+        images.append(renderer.render([Cover(colors[r.color], r.radius, *p)
+                                       for r, p in zip(robots, poses)]))
+    render_s = (time.perf_counter() - t0) / frames
+    tracker = CameraTracker(robots, colors, calibration, initial_poses={
+        r.agent_id: p[:2] for r, p in zip(robots, truth[0])})
+    seconds, errors, found = [], [], 0
+    for f, image in enumerate(images):
+        t = time.perf_counter()
+        result = tracker.update(image, f / 30.0)
+        seconds.append(time.perf_counter() - t)
+        for r, (x, y, _) in zip(robots, truth[f]):
+            if r.agent_id in result.poses:
+                found += 1
+                px, py, _ = result.poses[r.agent_id]
+                errors.append(math.hypot(px - x, py - y))
+    return {'robots': len(robots), 'width': width, 'height': height, 'frames': frames,
+            'brightness': brightness, 'seconds_median': float(np.median(seconds)),
+            'fps_median': float(1.0 / np.median(seconds)),
+            'fps_worst': float(1.0 / np.max(seconds)),
+            'render_fps': float(1.0 / render_s),
+            'found_fraction': found / (frames * len(robots)),
+            'position_rms_m': float(np.sqrt(np.mean(np.square(errors)))) if errors else math.nan}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--frames', type=int, default=200)
+    parser.add_argument('--brightness', default='0.4,1.0,1.3',
+                        help='comma-separated light levels')
+    parser.add_argument('--out', default=None, help='directory for bench_camera.json')
+    args = parser.parse_args(argv)
+    if args.frames < 1:
+        parser.error('--frames must be at least 1')
+    rows = []
+    for level in (float(b) for b in args.brightness.split(',')):
+        row = bench(args.frames, level)
+        rows.append(row)
+        print(f'brightness {level:.1f}: {row["fps_median"]:.1f} frames/s median '
+              f'(worst frame {row["fps_worst"]:.1f}/s), {row["robots"]} robots at '
+              f'{row["width"]}x{row["height"]}; found {row["found_fraction"]:.3f}, '
+              f'position RMS {row["position_rms_m"] * 1000:.2f} mm; rendering '
+              f'{row["render_fps"]:.1f} frames/s', flush=True)
+    if args.out:
+        out = pathlib.Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / 'bench_camera.json').write_text(json.dumps(rows, indent=2))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
