@@ -106,6 +106,55 @@ class KalmanFilter:
         """
         self.update(np.asarray(direction, float) @ self._h, z, var)
 
+    def range_model(self, x: np.ndarray, beacons: np.ndarray, offset) -> tuple[
+            np.ndarray, np.ndarray]:
+        """Predicted ranges h(x) = |p - offset - b_k| and their Jacobian H (m, n).
+
+        ``offset`` is the agent's own motion since the ranges were measured: they
+        were taken at p - offset.
+        """
+        d = x[:2] - np.asarray(offset, float) - beacons
+        ranges = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)
+        h = np.zeros((len(beacons), len(x)))
+        h[:, :2] = d / ranges[:, None]
+        return ranges, h
+
+    def range_nis(self, beacons, ranges, variances, offset=(0.0, 0.0)) -> float:
+        """Normalised innovation squared of a set of ranges at the prediction.
+
+        Chi-square with len(ranges) degrees of freedom when the filter, the beacons'
+        positions and the ranges are consistent (and the linearisation holds).
+        """
+        predicted, h = self.range_model(self.x, np.asarray(beacons, float), offset)
+        s = h @ self.P @ h.T + np.diag(np.asarray(variances, float))
+        y = np.asarray(ranges, float) - predicted
+        return float(y @ np.linalg.solve(s, y))
+
+    def update_ranges(self, beacons, ranges, variances, offset=(0.0, 0.0),
+                      iterations: int = 5) -> None:
+        """Iterated extended Kalman update with TOA ranges (Gauss-Newton on the prior
+        and the ranges, the maximum a posteriori estimate; Joseph form at the end).
+
+        The linearisation is taken at the current iterate, not at the prediction, so
+        the curvature of the range circles costs nothing once the iteration converges.
+        """
+        beacons = np.asarray(beacons, float)
+        z = np.asarray(ranges, float)
+        r = np.diag(np.asarray(variances, float))
+        x0, p0 = self.x.copy(), self.P
+        x = x0
+        for _ in range(iterations):
+            predicted, h = self.range_model(x, beacons, offset)
+            k = p0 @ h.T @ np.linalg.inv(h @ p0 @ h.T + r)
+            step = x0 + k @ (z - predicted - h @ (x0 - x))
+            converged = float(np.hypot(*(step[:2] - x[:2]))) < 1e-4
+            x = step
+            if converged:
+                break
+        ikh = np.eye(len(x)) - k @ h
+        self.x = x
+        self.P = ikh @ p0 @ ikh.T + k @ r @ k.T
+
     def update_velocity(self, z, R) -> None:
         """Measurement update with a velocity z (2,) of covariance R (H = [0 I 0])."""
         self.update(np.roll(self._h, 2, axis=1), z, R)

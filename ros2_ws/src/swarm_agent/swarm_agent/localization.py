@@ -1,11 +1,20 @@
 """Localization of one agent with lost / return-to-home modes (thesis 3.1.1-3.1.4).
 
 ``predict`` runs at the IMU rate, ``localize`` at every localization tick (3 s in the
-thesis): with at least three beacon neighbours the agent trilaterates and updates its
-Kalman filter (NORMAL); otherwise it counts a miss: LOST at the first, RETURN_HOME
-after three in a row (3.1.3), back to NORMAL as soon as it localizes again. Beacons
-update from their GPS fixes instead. Bad measurements (NaN, degenerate geometry) count
-as a miss; nothing raises into the agent loop.
+thesis): with at least three beacon neighbours the agent localizes (NORMAL); otherwise
+it counts a miss: LOST at the first, RETURN_HOME after three in a row (3.1.3), back to
+NORMAL as soon as it localizes again. Beacons update from their GPS fixes instead. Bad
+measurements (NaN, degenerate geometry) count as a miss; nothing raises into the agent
+loop.
+
+Beyond the thesis, while the filter's prior is narrow enough for the range circles to
+be linearised over it, the ranges update the filter directly (iterated EKF,
+``KalmanFilter.update_ranges``) instead of through a trilaterated fix: the prior then
+weighs in where the beacons' geometry leaves the fix poorly determined, and one or two
+beacon neighbours still correct the dead reckoning of a LOST agent (the mode stays
+LOST: a tick without three beacons is a miss, as in 3.1.3). With a wide prior (the
+first fix, or after a long stretch without beacons) the agent trilaterates as the
+thesis does.
 """
 
 from __future__ import annotations
@@ -16,6 +25,7 @@ import enum
 import logging
 
 import numpy as np
+from scipy.special import chdtri
 
 from swarm_agent.kalman import KalmanFilter
 from swarm_agent.trilateration import DegenerateGeometryError, trilaterate
@@ -42,13 +52,21 @@ class LocalizationConfig:
     accel_bias_max: float = 0.1 * MG      # m/s^2
     min_beacons: int = 3
     misses_before_home: int = 3
+    home_position_std: float = 1.0        # m: RETURN_HOME only when less certain (0: thesis)
     initial_position_std: float = 1.0     # m
+    initial_velocity_std: float = 0.01    # m/s: a robot is deployed standing still
     max_residual: float = 3.0             # m: worse trilaterations are rejected
     max_fix_std: float = 5.0              # m: less certain fix axes are not used
     gate: float = 13.8                    # chi-square (2 dof, 99.9 %) innovation gate
     max_gated: int = 3                    # then gated fixes that agree reinitialize
     max_speed: float = 1.0                # m/s: the robots' reach between two fixes
     zero_velocity_std: float = 0.01       # m/s: a parked robot's velocity (see stand_still)
+    range_updates: bool = True            # ranges update the filter directly (see module)
+
+
+def _chi2_999(dof: int) -> float:
+    """99.9 % quantile of chi-square with ``dof`` degrees of freedom."""
+    return float(chdtri(dof, 0.001))
 
 
 def _ranges_only(beacons: np.ndarray, ranges: np.ndarray, std: float, fallback):
@@ -68,6 +86,7 @@ class Localizer:
         self.config = config
         self.kf = KalmanFilter(initial_position, initial_velocity,
                                position_std=config.initial_position_std,
+                               velocity_std=config.initial_velocity_std,
                                accel_noise_std=config.accel_noise_std,
                                accel_bias_std=config.accel_bias_max)
         self.mode = Mode.NORMAL
@@ -75,7 +94,7 @@ class Localizer:
         self.home = np.asarray(home if home is not None else initial_position, float)
         self._t: float | None = None
         self.stats = {'localizations': 0, 'misses': 0, 'rejected': 0, 'gated': 0,
-                      'relocalizations': 0, 'partial': 0}
+                      'relocalizations': 0, 'partial': 0, 'range_updates': 0}
         # Fixes gated in a row: (fix, its covariance, its time).
         self._gated: list[tuple[np.ndarray, np.ndarray, float]] = []
 
@@ -155,10 +174,26 @@ class Localizer:
         shift = np.asarray(displacement, dtype=float)
         usable = [(np.asarray(p, float), float(r), float(s)) for p, r, s in beacons
                   if np.all(np.isfinite(p)) and np.isfinite(r) and np.isfinite(s) and s > 0]
-        if len(usable) >= self.config.min_beacons:
+        tight = self._range_update(usable, shift) if usable else None
+        enough = len(usable) >= self.config.min_beacons
+        if enough:
             pos = np.array([u[0] for u in usable])
             rng = np.array([u[1] for u in usable])
             std = float(np.sqrt(np.mean([u[2] ** 2 for u in usable])))
+        if enough and tight is not None:
+            if tight:
+                self._gated.clear()
+                self._localized()
+                return self.mode
+            # Ranges inconsistent with the filter: judge them by a fix of their own.
+            free = _ranges_only(pos, rng, std, None)
+            if free is not None and free.residual <= self.config.max_residual:
+                self._gate(t, free.position + shift, free.covariance)
+                return self.mode
+            self.stats['rejected'] += 1
+        elif tight is False:
+            self.stats['gated'] += 1    # one or two ranges the filter does not believe
+        elif enough:
             try:
                 fix = trilaterate(pos, rng, initial=self.position - shift, range_std=std)
             except (DegenerateGeometryError, ValueError) as exc:
@@ -187,9 +222,42 @@ class Localizer:
                     return self.mode
         self.missed_localizations += 1
         self.stats['misses'] += 1
-        home = self.missed_localizations >= self.config.misses_before_home
+        # 3.1.3 sends an agent home because without trilaterations its estimate drifts;
+        # one whose ranges to one or two beacons keep it within ``home_position_std``
+        # (along its worst axis) drives on to its goal, LOST.
+        spread = float(np.sqrt(np.linalg.eigvalsh(self.kf.P[:2, :2])[-1]))
+        home = (self.missed_localizations >= self.config.misses_before_home
+                and spread > self.config.home_position_std)
         self.mode = Mode.RETURN_HOME if home else Mode.LOST
         return self.mode
+
+    def _range_update(self, usable: list[tuple[np.ndarray, float, float]],
+                      shift: np.ndarray) -> bool | None:
+        """Update the filter with the ranges themselves (iterated EKF).
+
+        None when it does not apply: range updates are off, or the prior is too wide for
+        a range circle to be linearised over it (the circle of radius r bends away from
+        its tangent by s^2 / (2 r) over a distance s; that must stay below the range's
+        deviation sigma over one deviation s of the prior), or, with three beacons or
+        more, for any one of them (the thesis's trilateration then gives the fix). With
+        fewer than three, the ranges that qualify are used. False when the ranges are
+        inconsistent with the filter (normalised innovation beyond chi-square 99.9 %):
+        nothing is updated. True when the filter took them.
+        """
+        if not self.config.range_updates:
+            return None
+        spread = float(np.linalg.eigvalsh(self.kf.P[:2, :2])[-1])
+        linear = [u for u in usable if spread <= 2.0 * u[1] * u[2]]
+        if not linear or (len(usable) >= self.config.min_beacons and len(linear) < len(usable)):
+            return None
+        beacons = np.array([u[0] for u in linear])
+        ranges = np.array([u[1] for u in linear])
+        variances = np.array([u[2] ** 2 for u in linear])
+        if self.kf.range_nis(beacons, ranges, variances, shift) > _chi2_999(len(linear)):
+            return False
+        self.kf.update_ranges(beacons, ranges, variances, shift)
+        self.stats['range_updates'] += 1
+        return True
 
     def _localized(self) -> None:
         self.mode = Mode.NORMAL

@@ -13,8 +13,10 @@ profile:
 - ``thesis``: the thesis's simulation (3.1.4 eq. 3.32, 4.2): whenever the agent has
   the three beacon neighbours a trilateration needs, the fix is its true position plus
   2 m of Gaussian noise per axis (``sensors.TrilaterationFixModel``), fused as a
-  position measurement of that covariance. Without them it misses the tick as in
-  ``toa`` (LOST, then RETURN_HOME after three misses, 3.1.3).
+  position measurement of that covariance. Without them it misses the tick: LOST,
+  then RETURN_HOME after three misses whatever its uncertainty (3.1.3, the thesis's
+  rule; ``toa`` goes home only once the estimate is uncertain, see
+  ``LocalizationConfig.home_position_std``).
 
 A ``FixProbe`` wraps each non-beacon agent's ``Localizer.localize``: it supplies the
 thesis fix, records the time of the agent's first fix and its error just before every
@@ -27,6 +29,7 @@ the maximum also includes the pre-tick errors.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+import dataclasses
 from dataclasses import dataclass, field
 import math
 
@@ -66,8 +69,12 @@ class FixProbe:
         self.misses = 0
 
     def install(self) -> None:
-        """Route the brain's localization ticks through this probe."""
+        """Route the brain's localization ticks through this probe (with the thesis's
+        return-home rule for the thesis fix)."""
         self.localizer.localize = self
+        if self.fix_model is not None:
+            self.localizer.config = dataclasses.replace(self.localizer.config,
+                                                        home_position_std=0.0)
 
     def __call__(self, t: float, beacons: Sequence[tuple[np.ndarray, float, float]],
                  displacement=(0.0, 0.0)) -> Mode:
