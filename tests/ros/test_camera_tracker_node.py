@@ -92,6 +92,10 @@ def test_frames_on_the_image_topic_become_poses_and_a_bad_frame_is_counted(tmp_p
             assert sent(bad, lambda: node.counts['bad_frames'] >= 1)
             assert spin_until(executor, lambda: (s := _camera_status(diags)) is not None
                               and 'encoding' in s.message, 10.0)
+            small = image_to_msg(np.ascontiguousarray(frame[:240, :320]),
+                                 probe.get_clock().now().to_msg())
+            assert sent(small, lambda: 'calibration_file is for 640x480' in (
+                node._problem or ''))
             poses.clear()
             assert sent(good, lambda: len(poses) == len(ROBOTS))   # and it kept going
         finally:

@@ -179,11 +179,17 @@ class CameraTrackerNode(Node):
 
     # -- one frame ---------------------------------------------------------------------
     def _process(self, image, seconds: float, stamp) -> None:
+        w, h = self.tracker.calibration.size
+        if image.shape[1] != w or image.shape[0] != h:
+            self.counts['bad_frames'] += 1
+            self._report(f'a {image.shape[1]}x{image.shape[0]} frame, but calibration_file '
+                         f'is for {w}x{h}: run camera_calibrate at this resolution')
+            return
         result = self.tracker.update(image, seconds)
         self.counts['frames'] += 1
         for key in ('unknown_covers', 'ambiguous', 'incomplete'):
             self.counts[key] += getattr(result, key)
-        if self._problem is not None and self.params['source'] == '':
+        if self._problem is not None:
             self._clear('frames readable again')
         for k, (x, y, yaw) in result.poses.items():
             msg = PoseStamped()
