@@ -48,23 +48,25 @@ def bench(frames: int, brightness: float, width: int = 640, height: int = 480) -
     render_s = (time.perf_counter() - t0) / frames
     tracker = CameraTracker(robots, colors, calibration, initial_poses={
         r.agent_id: p[:2] for r, p in zip(robots, truth[0])})
-    seconds, errors, found = [], [], 0
+    seconds, errors, turns, found = [], [], [], 0
     for f, image in enumerate(images):
         t = time.perf_counter()
         result = tracker.update(image, f / 30.0)
         seconds.append(time.perf_counter() - t)
-        for r, (x, y, _) in zip(robots, truth[f]):
+        for r, (x, y, yaw) in zip(robots, truth[f]):
             if r.agent_id in result.poses:
                 found += 1
-                px, py, _ = result.poses[r.agent_id]
+                px, py, pyaw = result.poses[r.agent_id]
                 errors.append(math.hypot(px - x, py - y))
+                turns.append(math.degrees(math.remainder(pyaw - yaw, math.tau)))
     return {'robots': len(robots), 'width': width, 'height': height, 'frames': frames,
             'brightness': brightness, 'seconds_median': float(np.median(seconds)),
             'fps_median': float(1.0 / np.median(seconds)),
             'fps_worst': float(1.0 / np.max(seconds)),
             'render_fps': float(1.0 / render_s),
             'found_fraction': found / (frames * len(robots)),
-            'position_rms_m': float(np.sqrt(np.mean(np.square(errors)))) if errors else math.nan}
+            'position_rms_m': float(np.sqrt(np.mean(np.square(errors)))) if errors else math.nan,
+            'heading_rms_deg': float(np.sqrt(np.mean(np.square(turns)))) if turns else math.nan}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -83,7 +85,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f'brightness {level:.1f}: {row["fps_median"]:.1f} frames/s median '
               f'(worst frame {row["fps_worst"]:.1f}/s), {row["robots"]} robots at '
               f'{row["width"]}x{row["height"]}; found {row["found_fraction"]:.3f}, '
-              f'position RMS {row["position_rms_m"] * 1000:.2f} mm; rendering '
+              f'position RMS {row["position_rms_m"] * 1000:.2f} mm, heading RMS '
+              f'{row["heading_rms_deg"]:.2f} deg; rendering '
               f'{row["render_fps"]:.1f} frames/s', flush=True)
     if args.out:
         out = pathlib.Path(args.out)

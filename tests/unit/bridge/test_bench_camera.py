@@ -27,4 +27,5 @@ def test_tiny_camera_benchmark_writes_its_figures(tmp_path):
         for key in ('fps_median', 'fps_worst', 'render_fps', 'seconds_median'):
             assert math.isfinite(row[key]) and row[key] > 0, key
         assert row['found_fraction'] == 1.0 and row['position_rms_m'] < 0.01
+        assert row['heading_rms_deg'] < 3.0
     assert proc.stdout.count('frames/s median') == 2
