@@ -197,25 +197,28 @@ class CameraTracker:
         return labels, sat, v_ref
 
     # -- 2. circles ---------------------------------------------------------------------
-    def _blobs(self, labels: np.ndarray, sat: np.ndarray, index: int
-               ) -> list[tuple[np.ndarray, np.ndarray, float, float, tuple[int, int, int, int]]]:
-        """Regions of one label: (pixel centre, arena centre, arena area m^2, median
-        saturation, bounding box x0, y0, x1, y1)."""
-        return self._regions(cv2.compare(labels, index, cv2.CMP_EQ), sat, (0, 0))
+    def _coloured_regions(self, labels: np.ndarray, sat: np.ndarray) -> dict[int, list]:
+        """Regions of coloured pixels grouped by the label most of their pixels carry
+        (a few pixels of a neighbouring hue inside a circle do not split it)."""
+        groups: dict[int, list] = {}
+        for region in self._regions(cv2.compare(labels, NONE, cv2.CMP_NE), sat, (0, 0),
+                                    labels, self._min_pixels(labels.shape)):
+            groups.setdefault(region[5], []).append(region[:5])
+        return groups
 
-    def _regions(self, binary: np.ndarray, sat: np.ndarray, origin: tuple[int, int]
-                 ) -> list[tuple[np.ndarray, np.ndarray, float, float,
-                                 tuple[int, int, int, int]]]:
-        """Connected regions of ``binary`` (a window of ``sat`` at ``origin``), each
-        centred on its saturation-weighted centroid over the region and a one-pixel ring
-        (the blurred edge: sub-pixel centres)."""
+    def _regions(self, binary: np.ndarray, sat: np.ndarray, origin: tuple[int, int],
+                 labels: np.ndarray | None = None, min_pixels: int = 4) -> list[tuple]:
+        """Connected regions of ``binary`` (a window of ``sat`` at ``origin``): (pixel
+        centre, arena centre, arena area m^2, median saturation, bounding box x0, y0, x1,
+        y1, majority label or -1). The centre is the saturation-weighted centroid over the
+        region and a one-pixel ring (the blurred edge: sub-pixel centres)."""
         n, lab, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=4)
         out = []
         s0 = self.cfg.saturation_min / 2.0
         rows, cols = binary.shape
         for i in range(1, n):
             x, y, w, h, area = stats[i]
-            if area < 4:
+            if area < min_pixels:
                 continue
             x0, y0 = max(x - 2, 0), max(y - 2, 0)
             x1, y1 = min(x + w + 2, cols), min(y + h + 2, rows)
@@ -231,9 +234,25 @@ class CameraTracker:
             centre = np.array([float((weight * uu).sum()) / total + origin[0],
                                float((weight * vv).sum()) / total + origin[1]])
             arena = self.calibration.to_arena(centre)
+            label = -1 if labels is None else int(np.bincount(
+                labels[y0:y1, x0:x1][core > 0], minlength=256).argmax())
             out.append((centre, arena, total * self.calibration.area_per_pixel(centre), s1,
-                        (x0 + origin[0], y0 + origin[1], x1 + origin[0], y1 + origin[1])))
+                        (x0 + origin[0], y0 + origin[1], x1 + origin[0], y1 + origin[1]),
+                        label))
         return out
+
+    def _min_pixels(self, shape: tuple[int, int]) -> int:
+        """Half the pixels of the smallest circle kept (``min_area_fraction`` of the
+        smallest small circle) where pixels are largest: smaller regions are noise."""
+        if getattr(self, '_min_px_shape', None) != shape:
+            h, w = shape
+            smallest = min(math.pi * (self.geometry.small_radius * r) ** 2
+                           for r in self.radius.values()) * self.cfg.min_area_fraction
+            largest = max(self.calibration.area_per_pixel(np.array(c, dtype=float))
+                          for c in ((0, 0), (w - 1, 0), (0, h - 1), (w - 1, h - 1)))
+            self._min_px = max(4, int(0.5 * smallest / largest))
+            self._min_px_shape = shape
+        return self._min_px
 
     def _size(self, region: tuple) -> float:
         """A region's radius in the arena (m), less half a pixel of blurred edge."""
@@ -257,13 +276,14 @@ class CameraTracker:
         g = self.geometry
         result = FrameResult(stamp=math.nan, reference_value=v_ref)
         smallest = min(math.pi * (g.small_radius * r) ** 2 for r in self.radius.values())
+        groups = self._coloured_regions(labels, sat)
         for index, name in enumerate(self.names):
             R = self.radius[name]
             r_large, r_small = g.large_radius * R, g.small_radius * R
             larges, smalls = [], []
             joined = (r_large + math.hypot(r_large, r_small)) / 2.0
             regions = []
-            for region in self._blobs(labels, sat, index):
+            for region in groups.get(index, []):
                 parts = []
                 if self._size(region) > joined:       # the two circles run together: split
                     parts = self._split(labels, sat, index, region)
@@ -279,8 +299,10 @@ class CameraTracker:
                 else:   # two large circles run together: covers overlapping
                     larges.append((px, xy, True))
             result.detections.extend(self._pair(name, R, larges, smalls, result))
-        unknown = [region[1] for region in self._blobs(labels, sat, UNKNOWN)
-                   if math.pi * self._size(region) ** 2 >= self.cfg.min_area_fraction * smallest]
+        # printed colours are saturated through and through; noise in the dark is not
+        unknown = [region[1] for region in groups.get(UNKNOWN, [])
+                   if math.pi * self._size(region) ** 2 >= self.cfg.min_area_fraction * smallest
+                   and region[3] >= 1.3 * self.cfg.saturation_min]
         result.unknown_covers = _clusters(unknown, 2.0 * max(self.radius.values()))
         return result
 
@@ -377,15 +399,17 @@ class CameraTracker:
 
 def _clusters(points: list[np.ndarray], distance: float) -> int:
     """Number of groups of points chained closer than ``distance`` (covers of 2 circles)."""
-    groups: list[list[np.ndarray]] = []
-    for p in points:
-        near = [g for g in groups if any(np.hypot(*(p - q)) < distance for q in g)]
-        merged = [p]
-        for g in near:
-            merged.extend(g)
-            groups.remove(g)
-        groups.append(merged)
-    return len(groups)
+    group = list(range(len(points)))
+
+    def root(i: int) -> int:
+        while group[i] != i:
+            i = group[i]
+        return i
+    for i in range(len(points)):
+        for j in range(i):
+            if np.hypot(*(points[i] - points[j])) < distance:
+                group[root(i)] = root(j)
+    return len({root(i) for i in range(len(points))})
 
 
 def annotate(image: np.ndarray, result: FrameResult, calibration: Calibration,
