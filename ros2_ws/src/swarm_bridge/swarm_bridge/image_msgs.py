@@ -6,6 +6,8 @@ Pure module (messages and numpy; no rclpy): the camera tracker reads ``bgr8``, `
 
 from __future__ import annotations
 
+import array
+
 import cv2
 import numpy as np
 from sensor_msgs.msg import Image
@@ -46,5 +48,7 @@ def image_to_msg(image: np.ndarray, stamp, frame_id: str = 'camera') -> Image:
     msg.encoding = 'bgr8'
     msg.is_bigendian = 0
     msg.step = int(image.shape[1]) * 3
-    msg.data = np.ascontiguousarray(image, dtype=np.uint8).tobytes()
+    # An array.array, not bytes: rclpy serializes a bytes-assigned uint8[] element by
+    # element (50 ms for 640 x 480 here, against 2 ms).
+    msg.data = array.array('B', np.ascontiguousarray(image, dtype=np.uint8).tobytes())
     return msg
