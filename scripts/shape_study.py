@@ -146,6 +146,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     out = pathlib.Path(args.out)
     (out / 'shapes').mkdir(parents=True, exist_ok=True)
+    (out / 'rows').mkdir(exist_ok=True)
     kinds = {s.name: KINDS[i % len(KINDS)] for i, s in enumerate(shapes)}
     for shape in shapes:
         (out / 'shapes' / f'{shape.name}.json').write_text(json.dumps(shape_json(shape)),
@@ -166,6 +167,9 @@ def main(argv: list[str] | None = None) -> int:
                 row = row_from_metrics(trial.shape, trial.kind, trial.method, trial.seed,
                                        'error', {}, f'{type(exc).__name__}: {exc}')
             rows[trial.shape.name].append(row)
+            # Every row on disk as it comes: an interrupted study keeps what it ran.
+            (out / 'rows' / f'{row["shape"]}_{row["method"]}.json').write_text(
+                json.dumps(_jsonable(row)), encoding='utf-8')
             tqdm.write(f'{row["shape"]} {row["method"]}: {row["status"]} {row["note"]}')
     # The ROS swarm is smaller: the same kinds and seeds, sized for --ros-agents.
     for i, shape in enumerate(study_shapes(args.ros_subset, args.seed, args.ros_agents)):

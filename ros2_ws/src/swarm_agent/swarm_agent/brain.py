@@ -396,8 +396,10 @@ class AgentBrain:
                     # heartbeat extrapolated with its own velocity estimate.
                     lag = self._ranges_at - heard.heard_at
                     where = np.asarray(info.position) + lag * np.asarray(info.velocity)
-                    # The beacon's own position uncertainty adds to the range noise.
-                    effective = math.hypot(std, info.position_std)
+                    # The beacon's own position uncertainty adds to the range noise,
+                    # inflated for its persistence (LocalizationConfig).
+                    effective = math.hypot(std, info.position_std * math.sqrt(
+                        self.config.localization.beacon_variance_inflation))
                     beacons.append((where, rng_m, effective))
         self.localizer.localize(t, beacons,
                                 self.localizer.position - self._position_at_ranges)
