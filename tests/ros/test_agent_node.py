@@ -79,6 +79,7 @@ def test_beacon_agent_drives_to_its_goal_and_reports(tmp_path):
         assert len(got['tx']) <= len(frames)
         state = got['state'][-1]
         assert state.id == 5 and state.type == 2 and state.is_beacon
+        assert not state.localized, 'a beacon fixes by GPS, never from its own ranges'
         assert state.assigned_goal == 0, 'a lone agent must take the only goal of its type'
         assert state.rows_used == 1
         # The goal is to the east (+x): the LQR force must push east.

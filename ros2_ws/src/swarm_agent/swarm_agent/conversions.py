@@ -194,6 +194,7 @@ def snapshot_to_state(snap: Snapshot, stamp: Time | None = None,
     msg.assignment_digest = int(snap.assignment_digest) & 0xFFFFFFFF
     msg.rows_used = min(int(snap.rows_used), 0xFFFF)
     msg.settled = bool(snap.settled)
+    msg.localized = bool(snap.localized)
     return msg
 
 

@@ -53,7 +53,7 @@ class MonitorNode(Node):
         self.goal_version = 0
         self.record: dict[str, list] = {k: [] for k in (
             'times', 'positions', 'velocities', 'estimates', 'modes', 'alive', 'goal_ids',
-            'digests', 'rounds')}
+            'digests', 'rounds', 'localized')}
         self._last_record = -1e9
         self.rounds_seen: set[int] = set()
         self.settle = SettleTracker(settle_hold_s)
@@ -140,6 +140,8 @@ class MonitorNode(Node):
                                           for s in self.states], dtype=np.int64))
             r['rounds'].append(np.array([s.assignment_round if s is not None else 0
                                          for s in self.states], dtype=np.int64))
+            r['localized'].append(np.array([bool(s is not None and s.localized)
+                                            for s in self.states]))
 
     def snapshot(self) -> dict:
         """A copy of the record as numpy arrays (thread-safe)."""
