@@ -416,9 +416,11 @@ def test_consistent_fixes_reinitialize_a_wrong_filter_without_moving_its_velocit
             assert np.hypot(*(loc.position - truth)) > 14.0
         if tick == config.max_gated + 1:
             assert np.hypot(*(loc.velocity - velocity)) < 0.01
+    # The tick after the reinitialization trilaterates (its prior, with the velocity's
+    # precision given up, is too wide for range updates); the next takes the ranges.
     assert loc.stats == {'localizations': 3, 'misses': 0, 'rejected': 0,
                          'gated': config.max_gated, 'relocalizations': 1, 'partial': 0,
-                         'range_updates': 2}
+                         'range_updates': 1}
     assert np.hypot(*(loc.position - velocity * t)) < 1.0
     assert np.hypot(*(loc.velocity - velocity)) < 0.15
 

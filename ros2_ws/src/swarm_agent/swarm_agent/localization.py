@@ -33,6 +33,9 @@ from swarm_agent.trilateration import DegenerateGeometryError, trilaterate
 LOG = logging.getLogger(__name__)
 MG = 9.80665e-3  # m/s^2 per milli-g
 GATE_1DOF = 10.83  # chi-square (1 dof, 99.9 %)
+# A range's Jacobian is the unit vector to its beacon, known within about one deviation
+# of the prior over the range (radians): a range update needs it within 0.25 rad.
+BEARING_TOLERANCE = 0.25
 
 
 class Mode(enum.IntEnum):
@@ -243,7 +246,8 @@ class Localizer:
         None when it does not apply: range updates are off, or the prior is too wide for
         a range circle to be linearised over it (the circle of radius r bends away from
         its tangent by s^2 / (2 r) over a distance s; that must stay below the range's
-        deviation sigma over one deviation s of the prior), or, with three beacons or
+        deviation sigma over one deviation s of the prior, and the direction to the
+        beacon, s / r uncertain, within ``BEARING_TOLERANCE``), or, with three beacons or
         more, for any one of them (the thesis's trilateration then gives the fix). With
         fewer than three, the ranges that qualify are used. False when the ranges are
         inconsistent with the filter (normalised innovation beyond chi-square 99.9 %):
@@ -251,8 +255,9 @@ class Localizer:
         """
         if not self.config.range_updates:
             return None
-        spread = float(np.linalg.eigvalsh(self.kf.P[:2, :2])[-1])
-        linear = [u for u in usable if spread <= 2.0 * u[1] * u[2]]
+        variance = float(np.linalg.eigvalsh(self.kf.P[:2, :2])[-1])
+        linear = [u for u in usable if variance <= 2.0 * u[1] * u[2]
+                  and variance <= (BEARING_TOLERANCE * u[1]) ** 2]
         if not linear or (len(usable) >= self.config.min_beacons and len(linear) < len(usable)):
             return None
         beacons = np.array([u[0] for u in linear])
