@@ -149,6 +149,17 @@ class Localizer:
         self.mode = Mode.NORMAL
         self.missed_localizations = 0
 
+    def hold(self, position_std: float, velocity_std: float) -> None:
+        """No measurement for a while (hardware: the camera has lost the robot).
+
+        The estimate stays where the last measurement put it, with the grown
+        uncertainty the caller gives (how far the robot can have driven since), and the
+        agent counts as LOST: it cannot localize (3.1.3).
+        """
+        self.set_state(self.position.copy(), self.velocity.copy(), position_std,
+                       velocity_std)
+        self.mode = Mode.LOST
+
     def stand_still(self) -> None:
         """Zero-velocity update: the robot is parked (no force, held by dry friction).
 

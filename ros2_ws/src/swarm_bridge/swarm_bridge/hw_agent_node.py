@@ -15,7 +15,10 @@ their position. agent_node feeds it to the Kalman filter of 3.1.4 as a GPS fix, 
 no accelerometer the filter never predicts, its covariance only shrinks and the estimate
 lags the robot more and more (measured: 0.25 m behind after 20 s, so robots overshoot
 their goals). This node therefore sets the estimate from each camera pose: position as
-measured, velocity as the camera displacement over ``velocity_window`` seconds.
+measured, velocity as the camera displacement over ``velocity_window`` seconds. A robot
+the camera has not seen for ``pose_timeout`` seconds keeps its last estimate, LOST, with
+an uncertainty that grows as far as it can have driven since (``setpoint_v_max`` times
+the time without a pose), so its state says how little its position is known.
 
 Stopgap: once agent_node declares these parameters itself, launch agent_node with
 config/hw_agent.yaml instead.
@@ -46,6 +49,7 @@ PARAMETERS = {
                            'the buffer, m (goals are about 0.34 m apart)'),
     'arrive_radius': (0.005, 'Closer than this to the goal the setpoint is zero, m'),
     'velocity_window': (0.5, 'Camera displacement over this many seconds is the velocity'),
+    'pose_timeout': (0.5, 'Without a camera pose for this long the robot is LOST, s'),
 }
 
 
@@ -68,7 +72,11 @@ class HwAgentNode(AgentNode):
             avoid_buffer=p['avoid_buffer'], yield_margin=p['yield_margin'],
             arrive_radius=p['arrive_radius'])
         self._window = p['velocity_window']
+        self._pose_timeout = p['pose_timeout']
+        self._v_max = p['setpoint_v_max']
         self._poses: deque[tuple[float, float, float]] = deque()
+        self._stale = False
+        self.create_timer(0.1, self._check_pose_age)
         self.get_logger().info(f'arena distances: park {p["hold_radius"]} m, resume '
                                f'{p["resume_radius"]} m, v_max {p["setpoint_v_max"]} m/s')
 
@@ -85,6 +93,24 @@ class HwAgentNode(AgentNode):
         velocity = (np.array([x - x0, y - y0]) / (t - t0)) if t - t0 > 1e-3 else np.zeros(2)
         std = self.params['external_pose_std']
         self.brain.localizer.set_state((x, y), velocity, std, 2 * std / self._window)
+        if self._stale:
+            self._stale = False
+            self.get_logger().info('camera pose back')
+
+    def _check_pose_age(self) -> None:
+        """Hold the last estimate with a growing uncertainty while no pose comes."""
+        if not self._poses:
+            return
+        age = self._now() - self._poses[-1][0]
+        if age < self._pose_timeout:
+            return
+        if not self._stale:
+            self._stale = True
+            self.get_logger().warning(
+                f'no camera pose for {age:.1f} s: holding the last estimate, LOST, its '
+                f'uncertainty growing at {self._v_max} m/s until the camera sees the robot')
+        std = float(np.hypot(self.params['external_pose_std'], self._v_max * age))
+        self.brain.localizer.hold(std, self._v_max)
 
 
 def main(args: list[str] | None = None) -> None:
