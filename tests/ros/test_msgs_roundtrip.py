@@ -30,7 +30,7 @@ def test_every_message_type_round_trips_between_processes(processes):
 
     names = _types()
     assert {'RadioPacket', 'RouteTable', 'AgentState', 'GoalArray', 'FormationShape',
-            'RangeArray', 'CostReport', 'SwarmTruth'} <= set(names)
+            'RangeArray', 'SwarmTruth'} <= set(names)
     echo = processes.python(str(HERE / 'echo_node.py'))
     context = rclpy.Context()
     rclpy.init(context=context)

@@ -23,7 +23,6 @@ from swarm_mission.beacon_goals import (
 from swarm_mission.goals import (
     Goal,
     goal_positions,
-    goals_from_json,
     goals_to_json,
     PartitionError,
 )
@@ -261,11 +260,11 @@ def test_unknown_beacons_leave_goals_unmarked():
     assert not any(g.beacon for g in mission.goals)
 
 
-def test_beacon_flag_round_trips_json():
+def test_goals_json_carries_the_beacon_flag():
     goals = [Goal(0, 1, 1.0, 2.0, 0.15, beacon=True), Goal(1, 2, 3.0, 4.0, 0.3)]
-    assert goals_from_json(goals_to_json(goals)) == goals
-    assert goals_from_json({'goals': [{'x': 0, 'y': 0, 'type': 1, 'radius': 0.1}]})[0] \
-        .beacon is False
+    entries = goals_to_json(goals)['goals']
+    assert [e['beacon'] for e in entries] == [True, False]
+    assert [Goal(**e) for e in entries] == goals
 
 
 @pytest.mark.parametrize(('kind', 'amount', 'most'), [('move', 15.0, 0), ('rotate', 90.0, 3)])

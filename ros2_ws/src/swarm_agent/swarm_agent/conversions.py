@@ -15,7 +15,6 @@ from swarm_agent.brain import Snapshot
 from swarm_agent.packet import pack_frames, Packet, PacketError, unpack_frames
 from swarm_msgs.msg import (
     AgentState,
-    CostReport,
     ProximityArray,
     RadioPacketArray,
     RangeArray,
@@ -211,20 +210,4 @@ def routes_to_msg(owner: int, routes: Iterable, stamp: Time | None = None) -> Ro
         entry.hop_count = min(int(r.hop_count), RouteEntry.INFINITE_HOPS)
         entry.sequence_number = int(r.sequence_number) & 0xFFFFFFFF
         msg.routes.append(entry)
-    return msg
-
-
-def cost_report_to_msg(agent_id: int, agent_type: int, shape_version: int, goal_version: int,
-                       goal_ids: Iterable[int], costs: Iterable[float],
-                       stamp: Time | None = None) -> CostReport:
-    """A cost row -> swarm_msgs/CostReport (for introspection; the mesh carries the rows)."""
-    msg = CostReport()
-    if stamp is not None:
-        msg.header.stamp = stamp
-    msg.agent_id = agent_id
-    msg.agent_type = agent_type
-    msg.shape_version = shape_version
-    msg.goal_version = goal_version
-    msg.goal_ids = [int(g) for g in goal_ids]
-    msg.costs = [float(c) for c in costs]
     return msg

@@ -7,11 +7,10 @@ message naming the problem.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 
 from builtin_interfaces.msg import Time
 import numpy as np
-import shapely
 
 from swarm_mission.goals import Goal
 from swarm_mission.shapes import Shape, shape_from_rings
@@ -78,11 +77,3 @@ def goals_from_msg(msg: GoalArray) -> list[Goal]:
     return [Goal(id=int(g.id), type=int(g.type), x=float(g.x), y=float(g.y),
                  radius=float(g.radius), beacon=bool(g.beacon))
             for g in msg.goals if np.isfinite([g.x, g.y, g.radius]).all()]
-
-
-def rings_of(shape: Shape) -> Sequence[np.ndarray]:
-    """Every ring of a shape (outer, holes, obstacles) as (k,2) arrays, for drawing."""
-    rings = [np.asarray(shape.region.exterior.coords)]
-    rings += [np.asarray(h.coords) for h in shape.region.interiors]
-    rings += [np.asarray(shapely.get_exterior_ring(o).coords) for o in shape.obstacles]
-    return rings

@@ -8,13 +8,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-import math
 
 import numpy as np
-
-
-class GoalError(ValueError):
-    """Goal data that cannot be used (missing keys, non-finite values)."""
 
 
 class PartitionError(ValueError):
@@ -55,32 +50,6 @@ def goals_to_json(goals: Sequence[Goal]) -> dict:
     """The ``goals.json`` document: ``{"goals": [{"x", "y", "type", "radius", "id",
     "beacon"}, ...]}``."""
     return {'goals': [asdict(g) for g in goals]}
-
-
-def goals_from_json(data: dict) -> list[Goal]:
-    """Inverse of :func:`goals_to_json`; ids default to the list position, ``beacon`` to
-    false."""
-    try:
-        entries = data['goals']
-        goals = [Goal(id=int(e.get('id', i)), type=int(e['type']), x=float(e['x']),
-                      y=float(e['y']), radius=float(e['radius']),
-                      beacon=_flag(e.get('beacon', False)))
-                 for i, e in enumerate(entries)]
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise GoalError(f'goals document needs {{"goals": [{{"x", "y", "type", "radius"}}, '
-                        f'...]}}: {exc!r}') from None
-    for g in goals:
-        if not all(math.isfinite(v) for v in (g.x, g.y, g.radius)) or g.radius <= 0:
-            raise GoalError(f'goal {g.id} has a non-finite position or non-positive radius; '
-                            'fix the goals file')
-    return goals
-
-
-def _flag(value) -> bool:
-    """A JSON boolean; anything else is a ValueError."""
-    if not isinstance(value, bool):
-        raise ValueError(f'beacon must be true or false, got {value!r}')
-    return value
 
 
 HEX_PACKING_DENSITY = np.pi / (2 * np.sqrt(3))   # densest packing of equal disks (0.9069)

@@ -330,11 +330,3 @@ class Mission:
         if self.config.repair and self.alive:
             self.repartition(reason='self-repair after ' + ' and '.join(reasons))
         return newly_lost
-
-
-def goals_by_type(goals: Sequence[Goal]) -> dict[int, list[Goal]]:
-    """Group goals by robot type, each group sorted by id."""
-    groups: dict[int, list[Goal]] = {}
-    for g in sorted(goals, key=lambda g: g.id):
-        groups.setdefault(g.type, []).append(g)
-    return groups
