@@ -58,7 +58,6 @@ HIL_CONFIG = BRIDGE / 'config' / 'hil.yaml'
 HW_TYPES = BRIDGE / 'config' / 'hw_robot_types.yaml'
 HW_AGENT = BRIDGE / 'config' / 'hw_agent.yaml'
 CAMERA_CONFIG = BRIDGE / 'config' / 'camera.yaml'
-SETTLE_SPEED = 0.01       # m/s, eq. 5.4
 SPEED_WINDOW = 0.5        # s: camera speed = displacement over this window / window
 GRID_HZ = 10.0            # common time grid of the recorded camera tracks
 
@@ -235,21 +234,18 @@ class Monitor:
         rclpy.try_shutdown(context=self.context)
 
 
-def live_settled(tracks: dict, shape, now: float, window: float = SPEED_WINDOW) -> bool:
-    """Whether every robot is inside the shape and slower than eq. 5.4's 0.01 m/s now."""
-    for track in tracks.values():
-        if not track or now - track[-1][0] > 1.0:
-            return False
-        _, x, y = track[-1]
-        past = [p for p in track if p[0] <= track[-1][0] - window]
-        if not past:
-            return False
-        tp, xp, yp = past[-1]
-        if math.hypot(x - xp, y - yp) / (track[-1][0] - tp) >= SETTLE_SPEED:
-            return False
-        if not shape.region.contains(_point((x, y))):
-            return False
-    return True
+def record_settled(tracks: list[list[tuple[float, float, float]]], t0: float, now: float,
+                   shape, hold_s: float) -> dict | None:
+    """Eq. 5.4 with its hold, judged on the record so far exactly as ``analyse`` judges
+    the whole run (the same grid, speeds and tracker); None while a robot's track is
+    empty or more than a second old (a robot the camera lost is not settled)."""
+    from swarm_sim.metrics import settle_from_record
+
+    if any(not track or now - track[-1][0] > 1.0 for track in tracks):
+        return None
+    times, positions = resample(tracks, t0, now)
+    return settle_from_record(times, positions, speeds(times, positions), shape,
+                              hold_s=hold_s)
 
 
 # -- one run -------------------------------------------------------------------------------
@@ -303,6 +299,7 @@ def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: in
     real = args.camera not in ('truth', 'sim')
     monitor = Monitor(ids, '/agent_{k}/pose' if real else '/truth/agent_{k}/pose')
     outcome = 'duration'
+    t_end: float | None = None
     t_start = None
     try:
         if not real:
@@ -348,7 +345,6 @@ def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: in
         t_start = monitor.snapshot()[2]
         print(f'hil_demo: {name}: shape announced, {len(ids)} robots moving '
               f'(domain {domain}, logs in {run_dir / "logs"})', flush=True)
-        settled_since = None
         last_print = 0.0
         while True:
             time.sleep(0.25)
@@ -360,25 +356,21 @@ def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: in
                 break
             now = time.monotonic()
             tracks, _, _ = monitor.snapshot()
-            if live_settled(tracks, shape, now):
-                settled_since = now if settled_since is None else settled_since
-                if now - settled_since >= args.settle_hold:
-                    outcome = 'settled'
-                    break
-            else:
-                settled_since = None
+            judged = record_settled([tracks[k] for k in ids], t_start, now, shape,
+                                    args.settle_hold)
+            if judged is not None and judged['settled']:
+                outcome, t_end = 'settled', now
+                break
             if now - last_print >= 5.0:
                 last_print = now
-                print(f'  t={now - t_start:5.1f} s  settled for '
-                      f'{0.0 if settled_since is None else now - settled_since:.1f} s',
-                      flush=True)
+                print(f'  t={now - t_start:5.1f} s  not settled and held yet', flush=True)
             if now - t_start >= args.duration:
                 break
     except (RuntimeError, KeyboardInterrupt) as exc:
         outcome = 'interrupted' if isinstance(exc, KeyboardInterrupt) else str(exc)
         print(f'hil_demo: {name}: {outcome}', file=sys.stderr)
     finally:
-        t_end = time.monotonic()
+        t_end = time.monotonic() if t_end is None else t_end
         children.stop_all()
         tracks, states, _ = monitor.snapshot()
         with monitor.lock:
