@@ -64,3 +64,23 @@ def test_malformed_scans_are_dropped():
     np.testing.assert_allclose(brain._proximity[0], [[0.6, 0.0]])
     brain.on_proximity(t, [[0.6, 0.0]], [0.5, 0.3])                   # lengths differ
     np.testing.assert_allclose(brain._proximity[0], [[0.6, 0.0]])     # kept the last
+
+
+def test_a_robot_parked_outside_the_shape_moves_back_in():
+    """A goal 0.2 m inside the contour and a robot parked 0.5 m from it, outside: within
+    the resume radius (0.8 m), but eq. 4.1 never holds there, so it drives to its goal;
+    the same offset inside the shape stays parked."""
+    brain, t = _parked_brain()
+    brain.set_shape(Shape('edge', box(-5.0, -5.0, 0.2, 5.0)), 2)
+    brain.localizer.position[:] = [0.5, 0.0]          # outside: x > 0.2
+    for _ in range(30):
+        t += DT
+        out = brain.step(t)
+    assert not brain._parked and out.velocity_setpoint[0] < 0.0   # west, back inside
+    brain, t = _parked_brain()
+    brain.set_shape(Shape('edge', box(-5.0, -5.0, 0.2, 5.0)), 2)
+    brain.localizer.position[:] = [-0.5, 0.0]         # as far, inside
+    for _ in range(30):
+        t += DT
+        out = brain.step(t)
+    assert brain._parked and not out.velocity_setpoint.any()

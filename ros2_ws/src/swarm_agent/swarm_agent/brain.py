@@ -446,12 +446,15 @@ class AgentBrain:
         distance = float(np.hypot(*(target - position)))
         # Hysteresis around the goal: do not chase localization noise (the estimate
         # jumps by a few decimetres at every trilateration); park and brake instead. A
-        # parked agent moves again only when the goal is farther than the resume radius
-        # by two standard deviations of its own position estimate, or its goal changed.
+        # parked agent moves again when the goal is farther than the resume radius by
+        # two standard deviations of its own position estimate, when its goal changed,
+        # or when it finds itself outside the shape (goals lie closer to the contour
+        # than the resume radius; parked outside, eq. 4.1 never holds).
         resume = self.config.resume_radius + 2.0 * self.localizer.position_std
         if (self.goal_version, goal.id) != self._parked_goal:
             self._parked = False
-        if distance < self.config.hold_radius or (self._parked and distance < resume):
+        if distance < self.config.hold_radius or (
+                self._parked and distance < resume and _inside(self.shape, position)):
             self._parked_goal = (self.goal_version, goal.id)
             self._park()
             return
