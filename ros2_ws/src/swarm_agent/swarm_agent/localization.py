@@ -68,8 +68,8 @@ class LocalizationConfig:
     # A beacon's own estimate error persists over 20-40 s (its autocorrelation from one
     # 3 s tick to the next is 0.85-0.92 in the shape study), so a filter taking it
     # as white noise at every tick counts one error several times and grows confident
-    # in it. Its variance is inflated: with 4, three shapes of the study gave maximum
-    # errors of 1.5-1.6 m, 1.8-2.6 m without (8, on one of them, the same as 4).
+    # in it. Its variance is inflated: on three shapes of the study the maximum errors
+    # were 1.5-1.6 m with 4, 1.8-2.6 m without, 1.4-2.3 m with 8.
     beacon_variance_inflation: float = 4.0
 
 
