@@ -1,19 +1,22 @@
 """Shared pytest fixtures: ROS isolation and child-process hygiene.
 
 Every test runs in its own ROS domain (ROS_DOMAIN_ID unique to the test, discovery
-limited to localhost), so tests never hear each other or another run on the machine.
+limited to localhost, and reserved host-wide by a lock file while the test runs), so
+tests never hear each other or a test of another session on the machine.
 Child processes started through the ``processes`` fixture are killed, with their whole
 process group, when the test ends.
 """
 
 from __future__ import annotations
 
+import fcntl
 import itertools
 import os
 import pathlib
 import signal
 import subprocess
 import sys
+import tempfile
 
 from hypothesis import settings
 import pytest
@@ -44,23 +47,41 @@ def pytest_sessionstart(session) -> None:
     clean_stale_segments()
 
 
-def _next_domain_id() -> int:
-    """Return a domain id in 1..100 that differs between tests of this session.
+DOMAIN_LOCKS = pathlib.Path(tempfile.gettempdir()) / 'swarm-formation-ros-domains'
 
-    Parallel pytest sessions start from different offsets (their pids), so they
-    rarely collide; a collision still stays on localhost.
+
+def _reserve_domain_id():
+    """Reserve a domain id in 1..100 for one test: (id, the open lock file).
+
+    Ids differ between tests of this session (a counter from an offset of the pid), and
+    a lock file per id keeps two sessions on the machine (two CI runs at once) from
+    using one at the same time: on localhost their nodes would discover each other.
     """
-    return 1 + (os.getpid() * 7 + next(_domain_counter)) % 100
+    DOMAIN_LOCKS.mkdir(exist_ok=True)
+    start = os.getpid() * 7 + next(_domain_counter)
+    for k in range(100):
+        domain = 1 + (start + k) % 100
+        lock = open(DOMAIN_LOCKS / f'{domain}.lock', 'w')  # noqa: SIM115 - held by the test
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            lock.close()
+            continue
+        return domain, lock
+    raise RuntimeError(f'all 100 test ROS domains are in use on this machine ({DOMAIN_LOCKS})')
 
 
 @pytest.fixture(autouse=True)
-def ros_isolation(monkeypatch: pytest.MonkeyPatch) -> int:
-    """Give the test its own ROS domain on localhost; return the domain id."""
-    domain = _next_domain_id()
+def ros_isolation(monkeypatch: pytest.MonkeyPatch):
+    """Give the test its own ROS domain on localhost; yield the domain id."""
+    domain, lock = _reserve_domain_id()
     monkeypatch.setenv('ROS_DOMAIN_ID', str(domain))
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     monkeypatch.delenv('ROS_STATIC_PEERS', raising=False)
-    return domain
+    try:
+        yield domain
+    finally:
+        lock.close()                     # releases the reservation
 
 
 class ProcessGroup:

@@ -38,7 +38,7 @@ def test_a_robot_without_camera_poses_is_lost_with_growing_uncertainty():
                               QoSProfile(**qos.STATE))
     pose_pub = probe.create_publisher(PoseStamped, '/agent_3/pose', QoSProfile(**qos.SENSOR))
 
-    def spin(seconds: float, pose: tuple[float, float] | None = None) -> None:
+    def spin_until(done, seconds: float, pose: tuple[float, float] | None = None) -> bool:
         end = time.monotonic() + seconds
         while time.monotonic() < end:
             if pose is not None:
@@ -46,28 +46,38 @@ def test_a_robot_without_camera_poses_is_lost_with_growing_uncertainty():
                 msg.pose.position.x, msg.pose.position.y = pose
                 pose_pub.publish(msg)
             executor.spin_once(timeout_sec=0.02)
+            if done():
+                return True
+        return False
 
     def std(state: AgentState) -> float:
         return float(np.sqrt(state.covariance[0]))
 
+    def seen_at(xy) -> bool:
+        return bool(states) and states[-1].mode == AgentState.MODE_NORMAL and np.allclose(
+            states[-1].position, xy, atol=1e-6)
+
     try:
-        spin(1.5, pose=(0.8, 0.6))
-        seen = states[-1]
-        assert seen.mode == AgentState.MODE_NORMAL
-        assert np.allclose(seen.position, (0.8, 0.6), atol=1e-6)
-        assert std(seen) == pytest.approx(0.01, abs=1e-6)
-        spin(1.5)                       # the camera loses the robot
+        # Discovery can take seconds on a loaded machine: wait for the pose to arrive.
+        assert spin_until(lambda: seen_at((0.8, 0.6)), 30.0, pose=(0.8, 0.6))
+        assert std(states[-1]) == pytest.approx(0.01, abs=1e-6)
+        last_pose = time.monotonic()
+        # The camera loses the robot: LOST once no pose came for pose_timeout (0.5 s).
+        assert spin_until(lambda: states[-1].mode == AgentState.MODE_LOST, 10.0)
         early = states[-1]
-        spin(1.5)
+        spin_until(lambda: False, 1.5)
         late = states[-1]
+        age = time.monotonic() - last_pose
         for state in (early, late):
             assert state.mode == AgentState.MODE_LOST
             assert np.allclose(state.position, (0.8, 0.6), atol=1e-6), 'kept, not guessed'
-        # 0.035 m/s for 1-3 s without a pose: 3.5-10.5 cm, and growing.
-        assert 0.03 < std(early) < std(late) < 0.12, (std(early), std(late))
-        spin(1.0, pose=(0.81, 0.6))     # seen again
-        back = states[-1]
-        assert back.mode == AgentState.MODE_NORMAL and std(back) == pytest.approx(0.01, abs=1e-6)
+        # The deviation grows at 0.035 m/s from the last pose received: at least its
+        # value at the timeout, at most its value now (0.5 s allowed for the last
+        # best-effort poses lost on the way).
+        assert np.hypot(0.01, 0.035 * 0.5) - 1e-6 <= std(early) < std(late)
+        assert std(late) <= np.hypot(0.01, 0.035 * (age + 0.5)), (std(late), age)
+        assert spin_until(lambda: seen_at((0.81, 0.6)), 10.0, pose=(0.81, 0.6))  # seen again
+        assert std(states[-1]) == pytest.approx(0.01, abs=1e-6)
     finally:
         executor.shutdown()
         agent.destroy_node()
