@@ -29,4 +29,4 @@ lint: bootstrap
 	$(ENV) ruff check .
 
 clean:
-	rm -rf ros2_ws/build ros2_ws/install ros2_ws/log ros2_ws/.bootstrap-ws
+	rm -rf ros2_ws/build ros2_ws/install ros2_ws/log ros2_ws/.bootstrap-ws ros2_ws/.bootstrap-interfaces

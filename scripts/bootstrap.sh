@@ -93,6 +93,16 @@ ws_hash() {
     | sort -z | xargs -0 sha256sum; echo "$WANT_DEPS") | sha256sum | cut -d' ' -f1
 }
 WANT_WS="$(ws_hash)"
+# rosidl leaves the generated code of a removed or renamed interface in build/, and the
+# Python type support then fails to load (undefined symbol): a changed set of interface
+# files rebuilds the workspace from clean.
+STAMP_IFACES="$WS/.bootstrap-interfaces"
+WANT_IFACES="$(cd "$WS/src" && find . \( -name '*.msg' -o -name '*.srv' -o -name '*.action' \) \
+    -not -path '*/build/*' | sort | sha256sum | cut -d' ' -f1)"
+if [ -d "$WS/build" ] && [ "$(cat "$STAMP_IFACES" 2>/dev/null)" != "$WANT_IFACES" ]; then
+  say "the set of interface files changed; rebuilding the workspace from clean"
+  rm -rf "$WS/build" "$WS/install" "$STAMP_WS"
+fi
 if [ ! -f "$WS/install/setup.bash" ] || [ "$(cat "$STAMP_WS" 2>/dev/null)" != "$WANT_WS" ]; then
   say "building the workspace with colcon"
   (
@@ -119,5 +129,6 @@ if [ ! -f "$WS/install/setup.bash" ] || [ "$(cat "$STAMP_WS" 2>/dev/null)" != "$
     fi
   )
   echo "$WANT_WS" >"$STAMP_WS"
+  echo "$WANT_IFACES" >"$STAMP_IFACES"
 fi
 say "ready ($MODE mode). Run commands inside the environment with scripts/env.sh CMD ARGS..."

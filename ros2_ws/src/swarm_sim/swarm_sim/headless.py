@@ -272,7 +272,7 @@ class HeadlessSwarm:
                         brain.on_imu(t, accel[i])
             if k % every['range'] == 0:
                 for i, brain in enumerate(self.brains):
-                    if brain is not None and not self.is_beacon[i]:
+                    if brain is not None:
                         brain.on_ranges(t, self.medium.toa_ranges(self.ids[i], beacon_ids))
             if sc.proximity_period_s > 0 and k % every['proximity'] == 0:
                 scan = self.proximity.measure(self.dynamics.positions, self.radii, self.alive)

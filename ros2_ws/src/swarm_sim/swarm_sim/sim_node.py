@@ -663,7 +663,7 @@ class SimNode(Node):
         if self._due_now('range', 'range_rate_hz'):
             beacons = [self.ids[i] for i in np.flatnonzero(self.alive & self.is_beacon)]
             ranges = []
-            for i in np.flatnonzero(self.alive & ~self.is_beacon):
+            for i in np.flatnonzero(self.alive):   # beacons range the other beacons
                 msg = RangeArray()
                 msg.header.stamp = stamp
                 msg.receiver = self.ids[i]
