@@ -300,8 +300,7 @@ class AgentBrain:
         """Advance to time ``t``: inner velocity loop always, outer loop when due."""
         dt = 0.0 if self._last_t is None else max(0.0, t - self._last_t)
         self._last_t = t
-        if ((not self.config.is_beacon or self.config.localization.beacon_ranging)
-                and t >= self._next_localization):
+        if not self.config.is_beacon and t >= self._next_localization:
             self._next_localization = _next_tick(self._next_localization, t,
                                                  self.config.localization.period_s)
             self._localize(t)
@@ -383,41 +382,27 @@ class AgentBrain:
         return {k: n.info for k, n in self.neighbours.items()}
 
     def _localize(self, t: float) -> None:
-        """Localization tick (3.1.1, 3.1.3): trilaterate against beacon neighbours.
-
-        A beacon ranges the other beacons it hears (``LocalizationConfig.beacon_ranging``)
-        and updates its GPS-fed filter with those ranges, keeping its mode.
-        """
-        beacons = self._beacon_ranges(t)
-        shift = self.localizer.position - self._position_at_ranges
-        if self.config.is_beacon:
-            self.localizer.cooperate(beacons, shift)
-        else:
-            self.localizer.localize(t, beacons, shift)
-
-    def _beacon_ranges(self, t: float) -> list[tuple[np.ndarray, float, float]]:
-        """(where the beacon was, range, effective std) per fresh range to a NORMAL
-        beacon neighbour."""
+        """Localization tick (3.1.1, 3.1.3): trilaterate against beacon neighbours."""
         beacons = []
-        if t - self._ranges_at > self.config.range_stale_s:
-            return beacons
-        self._fresh_neighbours(t)
-        for beacon_id, rng_m, std in self._ranges:
-            heard = self.neighbours.get(beacon_id)
-            if heard is None:
-                continue
-            info = heard.info
-            if info.is_beacon and info.mode == Mode.NORMAL:
-                # Where the beacon was when the range was measured: its last
-                # heartbeat extrapolated with its own velocity estimate.
-                lag = self._ranges_at - heard.heard_at
-                where = np.asarray(info.position) + lag * np.asarray(info.velocity)
-                # The beacon's own position uncertainty adds to the range noise,
-                # inflated for its persistence (LocalizationConfig).
-                effective = math.hypot(std, info.position_std * math.sqrt(
-                    self.config.localization.beacon_variance_inflation))
-                beacons.append((where, rng_m, effective))
-        return beacons
+        if t - self._ranges_at <= self.config.range_stale_s:
+            self._fresh_neighbours(t)
+            for beacon_id, rng_m, std in self._ranges:
+                heard = self.neighbours.get(beacon_id)
+                if heard is None:
+                    continue
+                info = heard.info
+                if info.is_beacon and info.mode == Mode.NORMAL:
+                    # Where the beacon was when the range was measured: its last
+                    # heartbeat extrapolated with its own velocity estimate.
+                    lag = self._ranges_at - heard.heard_at
+                    where = np.asarray(info.position) + lag * np.asarray(info.velocity)
+                    # The beacon's own position uncertainty adds to the range noise,
+                    # inflated for its persistence (LocalizationConfig).
+                    effective = math.hypot(std, info.position_std * math.sqrt(
+                        self.config.localization.beacon_variance_inflation))
+                    beacons.append((where, rng_m, effective))
+        self.localizer.localize(t, beacons,
+                                self.localizer.position - self._position_at_ranges)
 
     def _round(self, t: float) -> int:
         return int(math.floor(t / self.config.consensus_period_s + 1e-9))

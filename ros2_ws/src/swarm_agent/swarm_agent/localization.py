@@ -71,7 +71,6 @@ class LocalizationConfig:
     # in it. Its variance is inflated: on three shapes of the study the maximum errors
     # were 1.5-1.6 m with 4, 1.8-2.6 m without, 1.4-2.3 m with 8.
     beacon_variance_inflation: float = 4.0
-    beacon_ranging: bool = False          # beacons range each other (see cooperate)
 
 
 def _chi2_999(dof: int) -> float:
@@ -182,19 +181,6 @@ class Localizer:
         self.mode = Mode.NORMAL
         self.missed_localizations = 0
 
-    def cooperate(self, beacons: Sequence[tuple[np.ndarray, float, float]],
-                  displacement=(0.0, 0.0)) -> None:
-        """A beacon's tick: its ranges to the other beacons update its filter.
-
-        Beyond the thesis (cooperative localization): the range updates of
-        ``_range_update`` with whichever beacon neighbours qualify; the beacon's mode
-        stays what its GPS makes it.
-        """
-        usable = [(np.asarray(p, float), float(r), float(s)) for p, r, s in beacons
-                  if np.all(np.isfinite(p)) and np.isfinite(r) and np.isfinite(s) and s > 0]
-        if usable:
-            self._range_update(usable, np.asarray(displacement, dtype=float), partial=True)
-
     def localize(self, t: float, beacons: Sequence[tuple[np.ndarray, float, float]],
                  displacement=(0.0, 0.0)) -> Mode:
         """Localization tick: (beacon position, range, range std) per beacon neighbour.
@@ -266,7 +252,7 @@ class Localizer:
         return self.mode
 
     def _range_update(self, usable: list[tuple[np.ndarray, float, float]],
-                      shift: np.ndarray, partial: bool = False) -> bool | None:
+                      shift: np.ndarray) -> bool | None:
         """Update the filter with the ranges themselves (iterated EKF).
 
         None when it does not apply: range updates are off, or the prior is too wide for
@@ -284,8 +270,7 @@ class Localizer:
         variance = float(np.linalg.eigvalsh(self.kf.P[:2, :2])[-1])
         linear = [u for u in usable if variance <= 2.0 * u[1] * u[2]
                   and variance <= (BEARING_TOLERANCE * u[1]) ** 2]
-        if not linear or (not partial and len(usable) >= self.config.min_beacons
-                          and len(linear) < len(usable)):
+        if not linear or (len(usable) >= self.config.min_beacons and len(linear) < len(usable)):
             return None
         beacons = np.array([u[0] for u in linear])
         ranges = np.array([u[1] for u in linear])
