@@ -10,6 +10,7 @@ import pytest
 
 from swarm_bridge import emulator, protocol, xbee
 from swarm_bridge.hil_world_node import initial_poses
+from swarm_bringup import hil
 
 
 @pytest.mark.parametrize('yaw_deg', [0.0, 37.0, 90.0, -135.0, 180.0])
@@ -55,28 +56,26 @@ def test_initial_poses_parameter():
 
 
 def test_hil_analysis_measures_displacement_and_eq_5_4_settling():
-    hil_demo = pytest.importorskip('hil_demo')
     from swarm_mission.goals import Goal
     from swarm_mission.shapes import load_shape
 
     shape = load_shape('hw_square')
     # one robot drives from (-0.6, 0) to (0, 0) at 0.03 m/s, then stands still
     track = [(t, min(-0.6 + 0.03 * t, 0.0), 0.0) for t in np.arange(0.0, 40.0, 0.1)]
-    times, positions = hil_demo.resample([track], 0.0, 39.9)
-    m = hil_demo.analyse(times, positions, shape, np.array([1]),
+    times, positions = hil.resample([track], 0.0, 39.9)
+    m = hil.analyse(times, positions, shape, np.array([1]),
                          [Goal(0, 1, 0.0, 0.0, 0.16)], {1: 0.16})
     assert m['total_displacement'] == pytest.approx(0.6, abs=1e-6)
     assert m['displacement_lower_bound'] == pytest.approx(0.6, abs=1e-6)
     assert m['all_inside'] and m['final_goal_error'][0] < 1e-9
     # inside from x > -0.4 (t = 6.7 s) but moving until t = 20 s (+ the speed window)
-    assert 20.0 <= m['settling_time'] <= 20.0 + hil_demo.SPEED_WINDOW + 0.11
+    assert 20.0 <= m['settling_time'] <= 20.0 + hil.SPEED_WINDOW + 0.11
 
 
 def test_the_live_settle_check_is_the_one_the_metrics_use():
     """hil_demo stops a run when eq. 5.4 has held for the hold window on the record so
     far; the metrics of that same record then give a settling time (the two once
     disagreed and a settled run reported none). A robot the camera lost is not settled."""
-    hil_demo = pytest.importorskip('hil_demo')
     from swarm_mission.goals import Goal
     from swarm_mission.shapes import load_shape
 
@@ -84,12 +83,12 @@ def test_the_live_settle_check_is_the_one_the_metrics_use():
     track = [(t, min(-0.6 + 0.03 * t, 0.0), 0.0) for t in np.arange(0.0, 40.0, 0.1)]
     hold = 2.0
     stop = next(now for now in np.arange(1.0, 40.0, 0.25)
-                if (hil_demo.record_settled([[p for p in track if p[0] <= now]], 0.0, now,
+                if (hil.record_settled([[p for p in track if p[0] <= now]], 0.0, now,
                                             shape, hold) or {}).get('settled'))
-    assert 20.0 + hold <= stop <= 20.0 + hil_demo.SPEED_WINDOW + hold + 0.36
-    times, positions = hil_demo.resample([[p for p in track if p[0] <= stop]], 0.0, stop)
-    m = hil_demo.analyse(times, positions, shape, np.array([1]),
+    assert 20.0 + hold <= stop <= 20.0 + hil.SPEED_WINDOW + hold + 0.36
+    times, positions = hil.resample([[p for p in track if p[0] <= stop]], 0.0, stop)
+    m = hil.analyse(times, positions, shape, np.array([1]),
                          [Goal(0, 1, 0.0, 0.0, 0.16)], {1: 0.16}, hold_s=hold)
     assert m['settling_time'] is not None and m['settling_time'] <= stop - hold + 1e-9
     lost = [p for p in track if p[0] <= 30.0]
-    assert hil_demo.record_settled([lost], 0.0, 31.5, shape, hold) is None
+    assert hil.record_settled([lost], 0.0, 31.5, shape, hold) is None

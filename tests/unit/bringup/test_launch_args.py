@@ -1,24 +1,26 @@
-"""scripts/launch_swarm.py refuses a bad host split or fault spec in one line, before starting."""
+"""scripts/launch_swarm.py (swarm_bringup.scenario) refuses a bad host split or fault
+spec in one line, before starting."""
 
 from __future__ import annotations
 
-import launch_swarm
-from launch_swarm import (
+import pytest
+
+from swarm_bringup import scenario, supervisor_node
+from swarm_bringup.scenario import (
     LaunchError,
     parse_agent_ids,
     parse_move_obstacle,
     parse_robot_fault,
     parse_set_sim,
 )
-import pytest
 
 BASE = ['--agents', '8', '--beacons', '3', '--shape', 'tests/data/square_8m.json',
         '--half-size', '15', '--out', '/nonexistent']
 
 
 def _validate(*extra: str):
-    args = launch_swarm.parse_args([*BASE, *extra])
-    launch_swarm.validate(args)
+    args = scenario.parse_args([*BASE, *extra])
+    scenario.validate(args)
     return args
 
 
@@ -58,7 +60,7 @@ def test_agents_only_must_start_something_and_cannot_remove():
 def test_main_refuses_in_one_line_without_starting(capsys, tmp_path):
     out = tmp_path / 'run'
     argv = [*BASE[:-1], str(out), '--local-agents', '0-9', '--domain', '42']
-    assert launch_swarm.main(argv) == 2
+    assert supervisor_node.main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert err == "launch_swarm.py: --local-agents '0-9': agent ids run 0..7 with --agents 8"
     assert not out.exists()
@@ -101,7 +103,7 @@ def test_set_sim_is_sorted_checked_against_the_run_and_only_where_the_sim_runs()
 
 def test_main_refuses_a_bad_set_sim_in_one_line(capsys, tmp_path):
     out = tmp_path / 'run'
-    assert launch_swarm.main([*BASE[:-1], str(out), '--set-sim', '60:range=5']) == 2
+    assert supervisor_node.main([*BASE[:-1], str(out), '--set-sim', '60:range=5']) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("launch_swarm.py: --set-sim '60:range=5': the sim node has no")
     assert '\n' not in err and not out.exists()
@@ -173,11 +175,20 @@ def test_a_shape_too_long_for_the_beacons_is_refused_naming_the_count(capsys, tm
     out = tmp_path / 'run'
     argv = ['--agents', '16', '--beacons', '4', '--types', '2:16', '--shape', str(strip),
             '--out', str(out)]
-    assert launch_swarm.main(argv) == 2
+    assert supervisor_node.main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert '\n' not in err
     assert err.startswith('launch_swarm.py: shape strip needs at least 6 beacons for a 25 m '
                           'radio; the fleet has 4: use --beacons 6')
     assert not out.exists()
     argv[3] = '6'
-    launch_swarm.validate(launch_swarm.parse_args(argv))
+    scenario.validate(scenario.parse_args(argv))
+
+
+def test_the_script_keeps_the_checks_the_study_scripts_import():
+    """scripts/fault_study.py checks its scenarios with launch_swarm.validate."""
+    import launch_swarm
+
+    assert launch_swarm.validate is scenario.validate
+    assert launch_swarm.parse_args is scenario.parse_args
+    assert launch_swarm.LaunchError is LaunchError

@@ -1,0 +1,267 @@
+"""Hardware-in-the-loop demo (thesis 5.3, Figs. 5.11-5.20): its options, its processes
+and the analysis of a run.
+
+The processes of one shape as launch-plan entries (swarm_bringup.launch_plan.NodeSpec):
+the emulated arena (``hil_world_node``), the camera tracker, the XBee bridge, one
+``hw_agent_node`` per robot and the mission node. The analysis reads the camera tracks:
+total displacement (summed track lengths), settling time (eq. 5.4), the displacement
+lower bound (optimal assignment of straight paths to the goals) and each robot's final
+distance to its goal, reported next to thesis Tables 5.2-5.6. Pure: no ROS import.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import pathlib
+
+import numpy as np
+
+from swarm_bringup.launch_plan import NodeSpec
+
+DESCRIPTION = ('Hardware-in-the-loop run without hardware: the formations of thesis Figs. '
+               '5.11-5.20.')
+SHAPES = ('hw_trapezoid', 'hw_square', 'hw_pentagon', 'hw_arrow', 'hw_line')
+# Thesis Tables 5.2-5.6 (Figs. 5.11-5.20): total displacement [m], settling time [s].
+THESIS = {'hw_trapezoid': (1.75, 23.0), 'hw_square': (1.63, 19.0),
+          'hw_pentagon': (1.95, 26.0), 'hw_arrow': (2.16, 29.0), 'hw_line': (1.80, 25.0)}
+THESIS_TABLE = {'hw_trapezoid': '5.2', 'hw_square': '5.3', 'hw_pentagon': '5.4',
+                'hw_arrow': '5.5', 'hw_line': '5.6'}
+SPEED_WINDOW = 0.5        # s: camera speed = displacement over this window / window
+GRID_HZ = 10.0            # common time grid of the recorded camera tracks
+
+
+
+
+def bridge_config(name: str) -> pathlib.Path:
+    """A file of swarm_bridge's config/: from the installed share folder, or the source
+    tree next to this package when the workspace is not built."""
+    try:
+        from ament_index_python.packages import get_package_share_directory
+        return pathlib.Path(get_package_share_directory('swarm_bridge')) / 'config' / name
+    except (ImportError, LookupError, ValueError):
+        return pathlib.Path(__file__).resolve().parents[2] / 'swarm_bridge' / 'config' / name
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(description=DESCRIPTION)
+    p.add_argument('--shape', default='all', help=f'one of {", ".join(SHAPES)} or all')
+    p.add_argument('--out', required=True, help='results directory')
+    p.add_argument('--duration', type=float, default=90.0,
+                   help='seconds at most per shape after the shape is announced')
+    p.add_argument('--settle-hold', type=float, default=3.0,
+                   help='seconds the swarm must stay settled (eq. 5.4) to end a run')
+    p.add_argument('--camera-noise', type=float, default=None,
+                   help='camera position noise, m (default: config/hil.yaml)')
+    p.add_argument('--radio-loss', type=float, default=None,
+                   help="per-receiver frame loss of the agents' mesh, 0..1 "
+                        '(default: config/hil.yaml)')
+    p.add_argument('--camera', default='truth',
+                   help='truth, sim (rendered camera + tracker), or a V4L2 device / video '
+                        'file for real robots')
+    p.add_argument('--calibration', default=None,
+                   help='camera calibration YAML (camera_calibrate) for a real camera')
+    p.add_argument('--port', default='/dev/ttyUSB0',
+                   help='serial port of the coordinator XBee for real robots')
+    p.add_argument('--domain', type=int, default=None, help='first ROS_DOMAIN_ID (default: free)')
+    p.add_argument('--no-plot', action='store_true', help='skip the PNG figures')
+    args = p.parse_args(argv)
+    if args.shape != 'all' and args.shape not in SHAPES:
+        p.error(f'--shape {args.shape!r}: use one of {", ".join(SHAPES)} or all')
+    if args.duration <= 0 or args.settle_hold < 0:
+        p.error('--duration must be positive and --settle-hold non-negative')
+    if args.radio_loss is not None and not 0.0 <= args.radio_loss <= 1.0:
+        p.error(f'--radio-loss {args.radio_loss}: give a probability between 0 and 1')
+    if args.camera not in ('truth', 'sim') and not args.calibration:
+        p.error(f'--camera {args.camera}: give --calibration FILE (run camera_calibrate '
+                f'--source {args.camera} --out FILE first)')
+    return args
+
+
+def resample(tracks: list[list[tuple[float, float, float]]], t0: float, t1: float,
+             hz: float = GRID_HZ) -> tuple[np.ndarray, np.ndarray]:
+    """Camera tracks [(t, x, y), ...] per robot onto one grid from t0 to t1 (last value held).
+
+    Returns (times relative to t0, positions (T, N, 2)).
+    """
+    grid = np.arange(t0, t1 + 1e-9, 1.0 / hz)
+    positions = np.zeros((len(grid), len(tracks), 2))
+    for i, track in enumerate(tracks):
+        arr = np.asarray(track, dtype=float)
+        idx = np.clip(np.searchsorted(arr[:, 0], grid, side='right') - 1, 0, len(arr) - 1)
+        positions[:, i] = arr[idx, 1:3]
+    return grid - t0, positions
+
+
+def speeds(times: np.ndarray, positions: np.ndarray,
+           window: float = SPEED_WINDOW) -> np.ndarray:
+    """Backward-difference velocities (T, N, 2) over ``window`` seconds of camera track."""
+    lag = max(1, round(window / float(times[1] - times[0]))) if len(times) > 1 else 1
+    vel = np.zeros_like(positions)
+    if len(times) > lag:
+        vel[lag:] = (positions[lag:] - positions[:-lag]) / (times[lag:] - times[:-lag])[:, None,
+                                                                                        None]
+    return vel
+
+
+def analyse(times: np.ndarray, positions: np.ndarray, shape, types: np.ndarray,
+            goals: list, radii: dict[int, float], hold_s: float = 0.0) -> dict:
+    """Metrics of one run: displacement, settling time (eq. 5.4, held ``hold_s`` seconds
+    to the end of the run), bounds, goal errors."""
+    from swarm_sim.metrics import displacement_lower_bound, path_lengths, settle_from_record
+
+    velocities = speeds(times, positions)
+    final = positions[-1]
+    goal_xy = np.array([[g.x, g.y] for g in goals])
+    goal_types = np.array([g.type for g in goals])
+    # each robot's goal: nearest goal of its type to where it ended (assignment shown by
+    # the agents' own states in the record; here only distances matter)
+    errors = []
+    for i, t in enumerate(types):
+        mine = goal_xy[goal_types == t]
+        errors.append(float(np.min(np.hypot(*(mine - final[i]).T))) if len(mine) else math.nan)
+    inside = [bool(shape.region.contains(_point(p))) for p in final]
+    return {
+        'total_displacement': float(path_lengths(positions).sum()),
+        'per_robot_displacement': [float(d) for d in path_lengths(positions)],
+        'settling_time': settle_from_record(times, positions, velocities, shape,
+                                            hold_s=hold_s)['settling_time'],
+        'displacement_lower_bound': displacement_lower_bound(
+            positions[0], goal_xy[np.argsort(goal_types, kind='stable')],
+            np.sort(types, kind='stable'), shape, radii)
+        if sorted(types.tolist()) == sorted(goal_types.tolist()) else math.nan,
+        'final_goal_error': errors,
+        'all_inside': all(inside),
+        'final_speed_max': float(np.linalg.norm(velocities[-1], axis=1).max()),
+        'duration': float(times[-1]),
+    }
+
+
+def _point(p):
+    from shapely.geometry import Point
+    return Point(float(p[0]), float(p[1]))
+
+
+def record_settled(tracks: list[list[tuple[float, float, float]]], t0: float, now: float,
+                   shape, hold_s: float) -> dict | None:
+    """Eq. 5.4 with its hold, judged on the record so far exactly as ``analyse`` judges
+    the whole run (the same grid, speeds and tracker); None while a robot's track is
+    empty or more than a second old (a robot the camera lost is not settled)."""
+    from swarm_sim.metrics import settle_from_record
+
+    if any(not track or now - track[-1][0] > 1.0 for track in tracks):
+        return None
+    times, positions = resample(tracks, t0, now)
+    return settle_from_record(times, positions, speeds(times, positions), shape,
+                              hold_s=hold_s)
+
+
+def sim_calibration(params: dict, path: pathlib.Path) -> pathlib.Path:
+    """Calibrate the rendered camera of config/hil.yaml on its corner markers, as a user
+    calibrates a real one (camera_calibrate), and write it to ``path``."""
+    from swarm_bridge.arena_calibration import calibrate
+    from swarm_bridge.camera_render import CameraRenderer, sim_camera_config
+
+    calibrate(CameraRenderer(sim_camera_config(params)).render([])).save(path)
+    return path
+
+
+def count_warnings(path: pathlib.Path) -> int:
+    try:
+        return sum('WARN' in line for line in path.read_text(errors='replace').splitlines())
+    except OSError:
+        return 0
+
+
+def plot(path: pathlib.Path, name: str, shape, positions: np.ndarray, goals: list,
+         robots: list) -> None:
+    """Traces from the initial positions to the goals, as thesis Figs. 5.11-5.20."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5, 5))
+    xs, ys = shape.region.exterior.xy
+    ax.plot(xs, ys, 'k-', lw=1.5)
+    for g in goals:
+        ax.add_patch(plt.Circle((g.x, g.y), g.radius, fill=False, color='k', lw=0.8))
+    for i, r in enumerate(robots):
+        ax.plot(positions[:, i, 0], positions[:, i, 1], 'b-', lw=1)
+        ax.add_patch(plt.Circle(tuple(positions[-1, i]), r.radius, alpha=0.5,
+                                color=r.color or 'gray'))
+        ax.plot(*positions[0, i], 'o', color=r.color or 'gray', ms=4)
+    ax.set_xlim(-1, 1)
+    ax.set_ylim(-1, 1)
+    ax.set_aspect('equal')
+    ax.grid(True, lw=0.3)
+    ax.set_title(f'{name}: HIL (emulated robots), 2 x 2 m arena')
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def table(results: list[dict]) -> str:
+    """The per-shape comparison with thesis Tables 5.2-5.6."""
+    lines = ['shape          table  displacement [m]  (thesis, bound)   settling [s] (thesis)'
+             '  outcome']
+    for m in results:
+        name = m['shape']
+        disp, settle = THESIS[name]
+        got_d = m.get('total_displacement', math.nan)
+        got_s = m.get('settling_time')
+        bound = m.get('displacement_lower_bound', math.nan)
+        s_text = f'{got_s:6.1f}' if got_s is not None else '     -'
+        lines.append(f'{name:14s} {THESIS_TABLE[name]:5s}  {got_d:6.2f}       ({disp:.2f}, '
+                     f'{bound:.2f})      {s_text}      ({settle:.0f})     {m["outcome"]}')
+    return '\n'.join(lines)
+
+
+# -- the processes of one shape ---------------------------------------------------------
+def hil_world_node(port_link: pathlib.Path, args: argparse.Namespace) -> NodeSpec:
+    """The emulated robots and overhead camera (config/hil.yaml; later -p win)."""
+    world = {'port_link': str(port_link),
+             'camera': 'image' if args.camera == 'sim' else 'truth'}
+    if args.camera_noise is not None:
+        world['camera_noise_m'] = float(args.camera_noise)
+    if args.radio_loss is not None:
+        world['radio_loss'] = float(args.radio_loss)
+    return NodeSpec('swarm_bridge', 'hil_world_node', 'hil_world', parameters=world,
+                    params_files=(str(bridge_config('hil.yaml')),))
+
+
+def camera_tracker_node(calibration: str, poses: list[tuple[float, float, float]],
+                        source: str | None = None) -> NodeSpec:
+    """The camera tracker on the rendered (``source`` None) or a real camera."""
+    tracker: dict = {'calibration_file': calibration,
+                     'initial_poses': [v for x, y, yaw in poses
+                                       for v in (x, y, math.degrees(yaw))]}
+    if source is not None:
+        tracker['source'] = source
+    return NodeSpec('swarm_bridge', 'camera_tracker_node', 'camera_tracker',
+                    parameters=tracker, params_files=(str(bridge_config('camera.yaml')),),
+                    remappings=(('image', '/camera/image_raw'),))
+
+
+def bridge_node(port: str) -> NodeSpec:
+    """The XBee bridge on the coordinator's serial port (or the emulator's pty)."""
+    return NodeSpec('swarm_bridge', 'bridge_node', 'bridge', parameters={'port': port})
+
+
+def hw_agent_nodes(robots: list, poses: list[tuple[float, float, float]],
+                   type_counts: str) -> list[NodeSpec]:
+    """One hardware agent per robot, ``/agent_K/agent``, at its initial pose."""
+    return [NodeSpec('swarm_bridge', 'hw_agent_node', f'agent_{robot.agent_id}', name='agent',
+                     namespace=f'/agent_{robot.agent_id}',
+                     params_files=(str(bridge_config('hw_agent.yaml')),), parameters={
+                         'agent_id': robot.agent_id, 'agent_type': robot.type,
+                         'initial_x': x, 'initial_y': y, 'seed': robot.agent_id,
+                         'robot_types_file': str(bridge_config('hw_robot_types.yaml')),
+                         'type_counts': type_counts})
+            for robot, (x, y, _) in zip(robots, poses)]
+
+
+def hil_mission_node(shape: str, type_counts: str) -> NodeSpec:
+    """The mission node: bubble packing partitioned on the agents, no formation margin."""
+    return NodeSpec('swarm_mission', 'mission_node', 'mission', parameters={
+        'shape': shape, 'method': 'bubble', 'type_counts': type_counts,
+        'decentralized': True, 'formation_margin_m': 0.0})

@@ -1,0 +1,209 @@
+"""A run's processes as data: the one launch source of the simulated swarm.
+
+A plan is a list of ``NodeSpec``: which executable of which package runs, under which
+node name and namespace, with which parameters, parameter files and remappings. Two
+renderers read the same plan, so they cannot disagree: ``ros_arguments`` gives the
+command line ``scripts/launch_swarm.py`` starts (swarm_bringup.launcher), and
+``launch/swarm.launch.py`` hands ``node_kwargs`` to ``launch_ros.actions.Node``.
+
+The graph (thesis 4.1, 4.3): the world (``sim_node``, owner of ``/clock``), the mission
+(``mission_node``: shape, partition, goal broadcast) and the agents (thesis Ch. 3), either
+one ``agent_node`` process per robot named ``/agent_K/agent`` (the faithful deployment)
+or all of them in one ``composed_node`` process (for scale), whose nodes keep the names
+they give themselves. Pure: no ROS import.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+DEFAULT_BEACON_SHARE = 0.15   # beacons per agent when no count is given (at least 3)
+MIN_BEACONS = 3               # trilateration needs three anchors (thesis 3.2)
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One process of a run.
+
+    ``name`` None keeps the names the process gives its nodes (a composed process holds
+    one node per robot: a name would rename them all). ``process`` names the process and
+    its log file; ``fork`` starts it from a server that has imported the module once
+    (swarm_agent.prefork).
+    """
+
+    package: str
+    executable: str
+    process: str
+    name: str | None = None
+    namespace: str | None = None
+    parameters: Mapping[str, Any] = field(default_factory=dict)
+    params_files: tuple[str, ...] = ()
+    remappings: tuple[tuple[str, str], ...] = ()
+    fork: bool = False
+
+    @property
+    def module(self) -> str:
+        """The Python module run as ``python -m`` (every executable is its module)."""
+        return f'{self.package}.{self.executable}'
+
+
+@dataclass(frozen=True)
+class SwarmRun:
+    """What the plan of a simulated swarm needs to know about the run."""
+
+    fleet_file: str
+    shape: str
+    method: str = 'bubble'
+    seed: int = 0
+    composed: bool = False
+    decentralized: bool = False
+    control_rate_hz: float = 50.0
+    real_time_factor: float = 0.0
+    record_dir: str = ''
+    gui: bool = False
+    half_size: float = 50.0
+    markers: bool = False
+    remesh: str = 'incremental'
+    morph: str = ''
+    sequence_file: str = ''
+    truth_subscribers: int = 0    # observers the sim waits for before t = 0 (the monitor)
+    params_files: tuple[str, ...] = ()
+
+
+def type_counts_text(counts: Mapping[int, int]) -> str:
+    """``{1: 4, 2: 3}`` as the ``type_counts`` parameter ``'1:4,2:3'``."""
+    return ','.join(f'{t}:{c}' for t, c in sorted(counts.items()))
+
+
+def default_beacons(agents: int) -> int:
+    """The beacon count of a run that names none: 15 % of the agents, at least 3."""
+    return max(MIN_BEACONS, round(DEFAULT_BEACON_SHARE * agents))
+
+
+def counts_of(fleet: Iterable) -> dict[int, int]:
+    """Robots per type of a fleet."""
+    counts: dict[int, int] = {}
+    for r in fleet:
+        counts[r.type] = counts.get(r.type, 0) + 1
+    return counts
+
+
+def fleet_counts(agents: int, types: str = '') -> dict[int, int]:
+    """Robots per type of a run of ``agents``: ``types`` ``TYPE:COUNT,...`` or, empty,
+    the default composition (Table 4.1 shares). Raises RobotTypeError (a ValueError)
+    naming a bad count."""
+    from swarm_mission.robot_types import default_type_counts, parse_type_counts
+
+    return parse_type_counts(types) if types else default_type_counts(agents)
+
+
+def generate_fleet(counts: Mapping[int, int], beacons: int, seed: int, half_size: float,
+                   shape) -> list:
+    """The fleet of a run given by counts: ids 0..N-1 in type order placed at random
+    (seeded) in the workspace outside the shape's obstacles, beacons spread far apart
+    (swarm_sim.fleet.random_fleet; FleetError, a ValueError, names a bad count)."""
+    import numpy as np
+
+    from swarm_sim.fleet import random_fleet
+
+    return random_fleet(counts, beacons, np.random.default_rng(seed), half_size=half_size,
+                        obstacles=list(shape.obstacles))
+
+
+def world_nodes(run: SwarmRun) -> list[NodeSpec]:
+    """The simulator and the mission node."""
+    sim = {'fleet_file': run.fleet_file, 'shape': run.shape,
+           'real_time_factor': float(run.real_time_factor), 'record_dir': run.record_dir,
+           'gui': run.gui, 'seed': run.seed, 'half_size': run.half_size,
+           'marker_rate_hz': 1.0 if run.markers else 0.0,
+           # Composed agents take every robot's imu, ranges and radio deliveries in one
+           # message per step (swarm_msgs/SensorBatch).
+           'sensor_batch': bool(run.composed),
+           'truth_subscribers': run.truth_subscribers}
+    mission = {'shape': run.shape, 'method': run.method, 'fleet_file': run.fleet_file,
+               'seed': run.seed, 'remesh': run.remesh, 'decentralized': run.decentralized,
+               'use_sim_time': True}
+    if run.morph:
+        mission['morph'] = run.morph
+    if run.sequence_file:
+        mission['sequence_file'] = run.sequence_file
+    return [NodeSpec('swarm_sim', 'sim_node', 'sim', name='sim', parameters=sim,
+                     params_files=run.params_files),
+            NodeSpec('swarm_mission', 'mission_node', 'mission', name='mission',
+                     parameters=mission, params_files=run.params_files)]
+
+
+def agent_nodes(run: SwarmRun, fleet: Sequence, counts: Mapping[int, int],
+                local_ids: Iterable[int] | None = None) -> list[NodeSpec]:
+    """The agents of ``local_ids`` (default: the whole fleet): one composed process, or
+    one process per robot."""
+    type_counts = type_counts_text(counts)
+    all_ids = [r.id for r in fleet]
+    local = set(all_ids if local_ids is None else local_ids)
+    if not local:
+        return []
+    if run.composed:
+        params: dict[str, Any] = {
+            'fleet_file': run.fleet_file, 'method': run.method, 'seed': run.seed,
+            'control_rate_hz': run.control_rate_hz, 'use_sim_time': True,
+            'partition_locally': run.decentralized, 'type_counts': type_counts,
+            'sensor_batch': True}   # the world sends one batch per step (world_nodes)
+        if len(local) < len(all_ids):
+            params['agent_ids'] = sorted(local)
+        return [NodeSpec('swarm_agent', 'composed_node', 'agents', parameters=params,
+                         params_files=run.params_files)]
+    return [NodeSpec('swarm_agent', 'agent_node', f'agent_{r.id}', name='agent',
+                     namespace=f'/agent_{r.id}', fork=True, params_files=run.params_files,
+                     parameters={
+                         'agent_id': r.id, 'agent_type': r.type, 'is_beacon': r.is_beacon,
+                         'initial_x': r.x, 'initial_y': r.y, 'method': run.method,
+                         'seed': run.seed + r.id, 'control_rate_hz': run.control_rate_hz,
+                         'partition_locally': run.decentralized, 'type_counts': type_counts,
+                         'use_sim_time': True})
+            for r in fleet if r.id in local]
+
+
+def swarm_plan(run: SwarmRun, fleet: Sequence, counts: Mapping[int, int]) -> list[NodeSpec]:
+    """Every process of a simulated swarm on one host: world, mission, agents."""
+    return world_nodes(run) + agent_nodes(run, fleet, counts)
+
+
+def parameter_text(value: Any) -> str:
+    """A parameter value as ``-p name:=VALUE`` writes it (YAML)."""
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, (list, tuple)):
+        return '[' + ','.join(str(v) for v in value) + ']'
+    return str(value)
+
+
+def ros_arguments(spec: NodeSpec) -> list[str]:
+    """The ``--ros-args`` of a process: namespace, name, parameter files, then the
+    parameters (which win over the files) and the remappings."""
+    args = ['--ros-args']
+    if spec.namespace:
+        args += ['-r', f'__ns:={spec.namespace}']
+    if spec.name:
+        args += ['-r', f'__node:={spec.name}']
+    for path in spec.params_files:
+        args += ['--params-file', path]
+    for key, value in spec.parameters.items():
+        args += ['-p', f'{key}:={parameter_text(value)}']
+    for old, new in spec.remappings:
+        args += ['-r', f'{old}:={new}']
+    return args
+
+
+def node_kwargs(spec: NodeSpec) -> dict[str, Any]:
+    """The keyword arguments of ``launch_ros.actions.Node`` for a process."""
+    kwargs: dict[str, Any] = {
+        'package': spec.package, 'executable': spec.executable,
+        'parameters': [*spec.params_files, dict(spec.parameters)],
+        'remappings': list(spec.remappings), 'output': 'screen'}
+    if spec.name:
+        kwargs['name'] = spec.name
+    if spec.namespace:
+        kwargs['namespace'] = spec.namespace
+    return kwargs

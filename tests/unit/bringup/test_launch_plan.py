@@ -1,0 +1,167 @@
+"""The launch plan (swarm_bringup.launch_plan): the processes of a run as data, tested
+without launch_ros. The launcher and swarm.launch.py both render this plan."""
+
+from __future__ import annotations
+
+import ast
+import pathlib
+
+import pytest
+
+from swarm_bringup.launch_plan import (
+    agent_nodes,
+    default_beacons,
+    fleet_counts,
+    generate_fleet,
+    node_kwargs,
+    NodeSpec,
+    ros_arguments,
+    swarm_plan,
+    SwarmRun,
+    type_counts_text,
+    world_nodes,
+)
+from swarm_mission.shapes import load_shape
+from swarm_sim.fleet import RobotSpec
+
+ROOT = pathlib.Path(__file__).resolve().parents[3]
+BRINGUP = ROOT / 'ros2_ws' / 'src' / 'swarm_bringup'
+
+FLEET = [RobotSpec(0, 1, True, -3.0, 4.0), RobotSpec(1, 1, False, 2.5, -1.0),
+         RobotSpec(2, 2, True, 0.0, 0.0), RobotSpec(3, 3, True, 7.0, 7.5)]
+COUNTS = {1: 2, 2: 1, 3: 1}
+
+
+def _run(**kw) -> SwarmRun:
+    return SwarmRun(fleet_file='/tmp/run/fleet.yaml', shape='circle_314', seed=5, **kw)
+
+
+def test_per_robot_plan_names_each_agent_in_its_namespace():
+    plan = swarm_plan(_run(), FLEET, COUNTS)
+    assert [s.process for s in plan] == ['sim', 'mission', 'agent_0', 'agent_1', 'agent_2',
+                                        'agent_3']
+    sim, mission, *agents = plan
+    assert (sim.package, sim.executable, sim.name) == ('swarm_sim', 'sim_node', 'sim')
+    assert (mission.package, mission.executable, mission.name) == (
+        'swarm_mission', 'mission_node', 'mission')
+    assert sim.parameters['sensor_batch'] is False   # per-robot sensor topics
+    for robot, spec in zip(FLEET, agents):
+        assert (spec.package, spec.executable, spec.module) == (
+            'swarm_agent', 'agent_node', 'swarm_agent.agent_node')
+        assert (spec.name, spec.namespace, spec.fork) == ('agent', f'/agent_{robot.id}', True)
+        p = spec.parameters
+        assert (p['agent_id'], p['agent_type'], p['is_beacon']) == (
+            robot.id, robot.type, robot.is_beacon)
+        assert (p['initial_x'], p['initial_y']) == (robot.x, robot.y)
+        assert p['seed'] == 5 + robot.id     # a noise stream per agent
+        assert p['type_counts'] == '1:2,2:1,3:1'
+        assert p['use_sim_time'] is True and p['control_rate_hz'] == 50.0
+
+
+def test_composed_plan_is_one_process_that_keeps_its_node_names():
+    plan = swarm_plan(_run(composed=True, control_rate_hz=25.0), FLEET, COUNTS)
+    assert [s.process for s in plan] == ['sim', 'mission', 'agents']
+    sim, _, agents = plan
+    # A name would rename every robot's node of the process (/agent_K/agents_container).
+    assert agents.name is None and agents.namespace is None and not agents.fork
+    assert agents.executable == 'composed_node'
+    # The world sends one sensor batch per step and the agents expect it.
+    assert sim.parameters['sensor_batch'] is True and agents.parameters['sensor_batch'] is True
+    assert agents.parameters['fleet_file'] == '/tmp/run/fleet.yaml'
+    assert agents.parameters['control_rate_hz'] == 25.0
+    assert 'agent_ids' not in agents.parameters    # the whole fleet
+
+
+def test_a_host_runs_only_its_agents():
+    composed = agent_nodes(_run(composed=True), FLEET, COUNTS, [1, 3])
+    assert [s.parameters['agent_ids'] for s in composed] == [[1, 3]]
+    per_robot = agent_nodes(_run(), FLEET, COUNTS, [3, 1])
+    assert [s.process for s in per_robot] == ['agent_1', 'agent_3']
+    assert agent_nodes(_run(), FLEET, COUNTS, []) == []
+    assert agent_nodes(_run(composed=True), FLEET, COUNTS, []) == []
+
+
+def test_world_parameters_follow_the_run():
+    sim, mission = world_nodes(_run(markers=True, real_time_factor=2, record_dir='/r',
+                                    truth_subscribers=1, morph='move:15@200+60',
+                                    sequence_file='/s.yaml', decentralized=True))
+    assert sim.parameters == {
+        'fleet_file': '/tmp/run/fleet.yaml', 'shape': 'circle_314', 'real_time_factor': 2.0,
+        'record_dir': '/r', 'gui': False, 'seed': 5, 'half_size': 50.0,
+        'marker_rate_hz': 1.0, 'sensor_batch': False, 'truth_subscribers': 1}
+    assert mission.parameters == {
+        'shape': 'circle_314', 'method': 'bubble', 'fleet_file': '/tmp/run/fleet.yaml',
+        'seed': 5, 'remesh': 'incremental', 'decentralized': True, 'use_sim_time': True,
+        'morph': 'move:15@200+60', 'sequence_file': '/s.yaml'}
+    _, plain = world_nodes(_run())
+    assert 'morph' not in plain.parameters and 'sequence_file' not in plain.parameters
+
+
+def test_params_file_reaches_every_process():
+    plan = swarm_plan(_run(params_files=('/p.yaml',)), FLEET, COUNTS)
+    assert all(s.params_files == ('/p.yaml',) for s in plan)
+
+
+def test_command_line_rendering():
+    spec = NodeSpec('swarm_bridge', 'camera_tracker_node', 'tracker', name='agent',
+                    namespace='/agent_2', params_files=('/c.yaml',),
+                    parameters={'flag': True, 'off': False, 'xs': [1, 2.5], 'n': 3,
+                                'text': 'a b'},
+                    remappings=(('image', '/camera/image_raw'),))
+    assert ros_arguments(spec) == [
+        '--ros-args', '-r', '__ns:=/agent_2', '-r', '__node:=agent',
+        '--params-file', '/c.yaml',         # parameters after the file win over it
+        '-p', 'flag:=true', '-p', 'off:=false', '-p', 'xs:=[1,2.5]', '-p', 'n:=3',
+        '-p', 'text:=a b', '-r', 'image:=/camera/image_raw']
+    assert ros_arguments(NodeSpec('swarm_sim', 'sim_node', 'sim')) == ['--ros-args']
+
+
+def test_launch_ros_rendering():
+    spec = swarm_plan(_run(params_files=('/p.yaml',)), FLEET, COUNTS)[2]
+    kw = node_kwargs(spec)
+    assert kw['package'] == 'swarm_agent' and kw['executable'] == 'agent_node'
+    assert (kw['name'], kw['namespace']) == ('agent', '/agent_0')
+    assert kw['parameters'] == ['/p.yaml', dict(spec.parameters)]
+    assert kw['remappings'] == []
+    composed = node_kwargs(swarm_plan(_run(composed=True), FLEET, COUNTS)[2])
+    assert 'name' not in composed and 'namespace' not in composed
+
+
+def test_fleet_generated_from_counts():
+    shape = load_shape('circle_314')
+    counts = fleet_counts(8)
+    assert sum(counts.values()) == 8
+    assert fleet_counts(6, '1:4,3:2') == {1: 4, 3: 2}
+    beacons = default_beacons(8)
+    assert beacons == 3 and default_beacons(50) == 8     # 15 %, at least 3
+    fleet = generate_fleet(counts, beacons, 0, 50.0, shape)
+    assert [r.id for r in fleet] == list(range(8))
+    assert sum(r.is_beacon for r in fleet) == 3
+    assert all(max(abs(r.x), abs(r.y)) <= 50.0 for r in fleet)
+    assert generate_fleet(counts, beacons, 0, 50.0, shape) == fleet    # seeded
+    assert generate_fleet(counts, beacons, 1, 50.0, shape) != fleet
+
+
+def test_shipped_sample_fleet_is_the_generated_one():
+    from swarm_sim.fleet import load_fleet
+
+    shipped = load_fleet(BRINGUP / 'config' / 'fleet.yaml')
+    assert shipped == generate_fleet(fleet_counts(8), 3, 0, 50.0, load_shape('circle_314'))
+
+
+def test_launch_file_imports_launch_ros_only_itself():
+    """launch_ros is no dependency of the package's modules or of the tests."""
+    for path in (BRINGUP / 'swarm_bringup').glob('*.py'):
+        tree = ast.parse(path.read_text(encoding='utf-8'))
+        names = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+        names += [n.module or '' for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+        assert not [m for m in names if m.split('.')[0] in ('launch', 'launch_ros')], path
+    launch = (BRINGUP / 'launch' / 'swarm.launch.py').read_text(encoding='utf-8')
+    assert 'from launch_ros.actions import Node' in launch
+
+
+@pytest.mark.parametrize('counts', [{1: 2}, {3: 1, 1: 1, 2: 4}])
+def test_type_counts_text_is_sorted_by_type(counts):
+    text = type_counts_text(counts)
+    assert [int(p.split(':')[0]) for p in text.split(',')] == sorted(counts)
+    assert sum(int(p.split(':')[1]) for p in text.split(',')) == sum(counts.values())
