@@ -383,10 +383,10 @@ def test_obstacle_samples_repel_by_eq_3_93():
     assert f[0] == pytest.approx(expected, rel=1e-9)
 
 
-# -- scripts/lqr_report.py
+# -- swarm_eval.lqr_report (scripts/lqr_report.py)
 
 def test_lqr_report_writes_gains_and_step_plot(tmp_path, capsys):
-    import lqr_report
+    from swarm_eval import lqr_report
 
     assert lqr_report.main(['--out', str(tmp_path)]) == 0
     printed = capsys.readouterr().out

@@ -283,3 +283,19 @@ class RadioMedium:
                 true = float(np.hypot(*(self.positions[self.index[b]] - me)))
                 out.append((int(b), max(0.0, true + float(self.rng.normal(0.0, std))), std))
         return out
+
+
+def apply_setting(medium: RadioMedium, name: str, value: float, t: float,
+                  half_size: float) -> None:
+    """Apply the run-time setting ``name`` of ``RUNTIME_SETTINGS`` at sim time ``t``: packet
+    loss, radio range, or a wall sweeping the +/-``half_size`` workspace from ``t`` (speed
+    0 removes it). ValueError for an unknown name."""
+    if name == 'loss':
+        medium.set_loss(value)
+    elif name == 'radio_range_m':
+        medium.set_range(value)
+    elif name == 'radio_wall_speed_mps':
+        medium.start_wall(SweepingWall(t, value, half_size) if value > 0 else None)
+    else:
+        raise ValueError(f'unknown medium setting {name!r}; use one of '
+                         f'{", ".join(RUNTIME_SETTINGS)}')

@@ -79,18 +79,30 @@ def write_metrics(out: pathlib.Path, trials: Sequence[Mapping],
     """Write ``out/metrics.json`` = {"scenario", "trials", "mean"}; return the means."""
     mean = summarize(trials)
     payload = {'scenario': dict(scenario or {}), 'trials': list(trials), 'mean': mean}
-    (pathlib.Path(out) / 'metrics.json').write_text(
-        json.dumps(_jsonable(payload), indent=2, default=str), encoding='utf-8')
+    (pathlib.Path(out) / 'metrics.json').write_text(dumps(payload, indent=2),
+                                                     encoding='utf-8')
     return mean
 
 
-def _jsonable(value):
+def jsonable(value):
+    """``value`` as strict JSON data: NaN and infinities become None, numpy scalars and
+    arrays Python numbers and lists, mapping keys strings (the one sanitizer of every
+    JSON file the project writes; ``dumps`` adds ``str`` for anything else)."""
     if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
+        return {str(k): jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, (np.integer,)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, np.integer):
         return int(value)
     if isinstance(value, (np.floating, float)):
         return None if not np.isfinite(value) else float(value)
     return value
+
+
+def dumps(value, **kwargs) -> str:
+    """``json.dumps`` of ``jsonable(value)``; what JSON cannot hold is written as text."""
+    return json.dumps(jsonable(value), default=str, **kwargs)

@@ -1,14 +1,15 @@
-"""scripts/fault_study.py (issue 10) runs end to end on a tiny swarm and checks its probes."""
+"""swarm_eval.fault_study (scripts/fault_study.py, issue 10) runs end to end on a tiny swarm
+and checks its probes."""
 
 from __future__ import annotations
 
 import json
 
-import fault_study
 import numpy as np
 import pytest
 
 from swarm_agent.dsdv import RouteEntry
+from swarm_eval import fault_cases, fault_probes, fault_report, fault_ros, fault_study
 from swarm_mission.shapes import load_shape
 from swarm_sim.headless import HeadlessSwarm, Scenario
 
@@ -47,7 +48,7 @@ def test_quick_study_writes_table_plot_and_json(tmp_path, capsys):
 
 
 def test_fault_cases_cover_the_issue():
-    names = [c['name'] for c in fault_study.fault_cases()]
+    names = [c['name'] for c in fault_cases.fault_cases()]
     assert names[:5] == ['loss_0', 'loss_10', 'loss_20', 'loss_30', 'loss_50']
     assert {'kill_10', 'kill_30', 'beacons_one', 'beacons_half', 'obstacle'} <= set(names)
     assert [n for n in names if n.startswith('range_')] == ['range_12', 'range_8', 'range_5',
@@ -75,17 +76,17 @@ def test_loop_and_stale_route_probes():
     # a -> b -> a for destination c: a next-hop loop
     a.table[c.id] = RouteEntry(c.id, b.id, 2, 10)
     b.table[c.id] = RouteEntry(c.id, a.id, 2, 10)
-    assert fault_study.count_routing_loops(swarm) == 2
+    assert fault_probes.count_routing_loops(swarm) == 2
     swarm.alive[2] = False
     swarm.brains[2] = None
-    assert fault_study.stale_routes_to_dead(swarm) == 2
-    assert fault_study.count_routing_loops(swarm) == 2
+    assert fault_probes.stale_routes_to_dead(swarm) == 2
+    assert fault_probes.count_routing_loops(swarm) == 2
 
 
 def test_critical_range_is_the_longest_spanning_tree_edge():
     points = np.array([[0.0, 0.0], [1.0, 0.0], [5.0, 0.0], [5.0, 2.0]])
-    assert fault_study.critical_range(points) == pytest.approx(4.0)
-    assert fault_study.critical_range(points[:1]) == 0.0
+    assert fault_probes.critical_range(points) == pytest.approx(4.0)
+    assert fault_probes.critical_range(points[:1]) == 0.0
 
 
 @pytest.mark.parametrize('args', [['--seeds', '0'], ['--cases', 'nonsense'],
@@ -96,22 +97,22 @@ def test_bad_arguments_rejected(tmp_path, capsys, args):
 
 
 def test_count_loops_follows_next_hops():
-    assert fault_study.count_loops({0: {2: 1}, 1: {2: 2}, 2: {}}) == 0
-    assert fault_study.count_loops({0: {2: 1}, 1: {2: 0}}) == 2
+    assert fault_probes.count_loops({0: {2: 1}, 1: {2: 2}, 2: {}}) == 0
+    assert fault_probes.count_loops({0: {2: 1}, 1: {2: 0}}) == 2
 
 
 def test_the_fault_plan_becomes_launcher_flags(tmp_path):
-    config = fault_study.ros_config(fault_study.parse_args(['--out', '-', '--ros']))
-    cases = {c['name']: c for c in fault_study.fault_cases(config['ranges'])}
-    argv, plan = fault_study.ros_launch_argv(cases['obstacle'], config, 0, tmp_path)
+    config = fault_ros.ros_config(fault_study.parse_args(['--out', '-', '--ros']))
+    cases = {c['name']: c for c in fault_cases.fault_cases(config['ranges'])}
+    argv, plan = fault_ros.ros_launch_argv(cases['obstacle'], config, 0, tmp_path)
     assert argv[argv.index('--set-sim') + 1] == '80:radio_wall_speed_mps=1'
     assert plan['last'] == 80.0 + 30.0   # the wall crosses +/-15 m at 1 m/s
     assert argv[argv.index('--min-duration') + 1] == '170'
-    argv, plan = fault_study.ros_launch_argv(cases['kill_30'], config, 0, tmp_path)
+    argv, plan = fault_ros.ros_launch_argv(cases['kill_30'], config, 0, tmp_path)
     removed = [argv[k + 1] for k, a in enumerate(argv) if a == '--remove']
     assert len(removed) == 4 and all(80.0 <= float(r.split(':')[0]) <= 110.0
                                       for r in removed)
-    argv, _ = fault_study.ros_launch_argv(cases['loss_20'], config, 0, tmp_path)
+    argv, _ = fault_ros.ros_launch_argv(cases['loss_20'], config, 0, tmp_path)
     assert argv[argv.index('--set-sim') + 1] == '0:loss=0.2' and '--min-duration' not in argv
 
 
@@ -154,10 +155,10 @@ def _synthetic_ros_run(run_dir):
 def test_a_ros_run_becomes_a_row_of_the_table(tmp_path):
     run_dir = tmp_path / 'range_3_s0'
     _synthetic_ros_run(run_dir)
-    config = fault_study.ros_config(fault_study.parse_args(['--out', '-', '--ros']))
+    config = fault_ros.ros_config(fault_study.parse_args(['--out', '-', '--ros']))
     case = {'name': 'range_3', 'kind': 'range', 'value': 3.0}
     plan = {'first': 2.0, 'last': 3.0, 'removals': [(3.0, [2])], 'settings': []}
-    row = fault_study.ros_row(case, config, 0, run_dir, plan, 1, 12.0)
+    row = fault_ros.ros_row(case, config, 0, run_dir, plan, 1, 12.0)
     assert ROW_KEYS <= set(row)
     assert row['crashed'] == [] and row['tracebacks'] == ['agents'] and not row['passed']
     assert row['agents'] == 4 and row['agents_alive'] == 3 and row['beacons_alive'] == 2
@@ -169,24 +170,24 @@ def test_a_ros_run_becomes_a_row_of_the_table(tmp_path):
     # 4 m apart with a 3 m range after t = 2 s: no links, every agent alone
     assert row['max_components_after_fault'] == 4 and row['final_components'] == 3
     assert row['min_beacons_heard'] == 0 and not row['target_applies']
-    summary = fault_study.summarise([row], [case])
-    table = fault_study.markdown_table(summary, crashes=True)
+    summary = fault_report.summarise([row], [case])
+    table = fault_report.markdown_table(summary, crashes=True)
     assert '| range_3 |' in table and '| crashed |' in table.splitlines()[0] + '|'
     assert table.splitlines()[2].endswith('| 0/1 | 0/1 |')
     metrics = json.loads((run_dir / 'metrics.json').read_text())
     metrics['trials'][0]['outcome'] = 'crash of agents'
     (run_dir / 'metrics.json').write_text(json.dumps(metrics))
-    row = fault_study.ros_row(case, config, 0, run_dir, plan, 1, 12.0)
+    row = fault_ros.ros_row(case, config, 0, run_dir, plan, 1, 12.0)
     assert row['crashed'] == ['agents']
-    table = fault_study.markdown_table(fault_study.summarise([row], [case]), crashes=True)
+    table = fault_report.markdown_table(fault_report.summarise([row], [case]), crashes=True)
     assert table.splitlines()[2].endswith('| 1/1 | 0/1 |')
 
 
 def test_a_ros_run_without_results_is_a_crash(tmp_path):
     case = {'name': 'loss_0', 'kind': 'loss', 'value': 0.0}
-    row = fault_study.ros_row(case, {}, 0, tmp_path, {'first': 0.0, 'last': 0.0}, None, 5.0)
+    row = fault_ros.ros_row(case, {}, 0, tmp_path, {'first': 0.0, 'last': 0.0}, None, 5.0)
     assert row['crashed'] == ['launcher'] and not row['passed'] and 'no results' in row['error']
-    summary = fault_study.summarise([row], [case])
+    summary = fault_report.summarise([row], [case])
     assert summary['loss_0']['crashed'] == 1 and summary['loss_0']['passed'] == 0
 
 
@@ -195,9 +196,9 @@ def test_the_observation_window_does_not_restart_the_settled_hold():
     going (min_duration_s) without being a change. As a scheduled event it ended the
     settled streak, so no recovery could be shorter than the window."""
     config = fault_study.study_config(fault_study.parse_args(['--quick', '--out', 'x']))
-    case = next(c for c in fault_study.fault_cases(config['ranges'])
+    case = next(c for c in fault_cases.fault_cases(config['ranges'])
                 if c['name'] == 'beacons_one')
-    swarm = fault_study.build_swarm(case, config, 0)
-    first, last = fault_study.configure_fault(swarm, case, config, 0)
+    swarm = fault_cases.build_swarm(case, config, 0)
+    first, last = fault_cases.configure_fault(swarm, case, config, 0)
     assert swarm.scenario.min_duration_s == pytest.approx(last + config['observe'])
     assert all(t <= last for t, _ in swarm.scenario.events)

@@ -1,4 +1,4 @@
-"""The localization study in the thesis scenario (swarm_sim.localization_study,
+"""The localization study in the thesis scenario (swarm_eval.localization_study,
 scripts/localization_study.py; thesis 4.2, Figs. 4.4-4.6)."""
 
 from __future__ import annotations
@@ -6,12 +6,12 @@ from __future__ import annotations
 import json
 from types import SimpleNamespace
 
-import localization_study
 import numpy as np
 import pytest
 
 from swarm_agent.localization import LocalizationConfig, Localizer, Mode
-from swarm_sim.localization_study import (
+from swarm_eval import localization_study
+from swarm_eval.localization_study import (
     FixProbe,
     steady_mask,
     study,

@@ -1,8 +1,8 @@
-"""scripts/method_study.py: the worst-method marks of thesis Table 4.4."""
+"""swarm_eval.method_study (scripts/method_study.py): the worst-method marks of Table 4.4."""
 
 from __future__ import annotations
 
-import method_study
+from swarm_eval import method_study
 
 
 def _worst(means: dict, key: str) -> str:

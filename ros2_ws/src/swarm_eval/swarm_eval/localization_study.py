@@ -24,21 +24,36 @@ later tick (the peaks of Figs. 4.4-4.6, which come "at the iterations just befor
 localization process"). The error statistics are over the non-beacon agents at every
 2 Hz record sample (the thesis's propagation rate) from each agent's first fix on;
 the maximum also includes the pre-tick errors.
+
+Command line (``main``; ``ros2 run swarm_eval localization_study``, or
+``scripts/localization_study.py``) writes into --out:
+
+  error.png      error norm over time per period: every agent of every seed thin, the
+                 mean over them bold, the thesis's bound dashed
+  summary.json   {"noise": ..., "periods": {"3": {"max_error": m, "p95_error": m,
+                 "rms_error": m, "lost_or_home_share": ..., ...}, ...}, ...}
+
+  scripts/env.sh python scripts/localization_study.py --periods 3 5 8 --seeds 3 \\
+      --duration 200 --noise thesis --out results/loc_thesis
 """
 
 from __future__ import annotations
 
+import argparse
 from collections.abc import Callable, Sequence
 import dataclasses
 from dataclasses import dataclass, field
+import json
 import math
+import pathlib
+import sys
 
 import numpy as np
 
 from swarm_agent.localization import Localizer, Mode
 from swarm_mission.robot_types import default_type_counts
-from swarm_mission.shapes import load_shape
-from swarm_sim.headless import HeadlessSwarm, Scenario, TrialRecord
+from swarm_mission.shapes import load_shape, ShapeError
+from swarm_sim.headless import HeadlessSwarm, Scenario, ScenarioError, TrialRecord
 from swarm_sim.sensors import TrilaterationFixModel
 
 NOISE_PROFILES = ('thesis', 'toa')
@@ -301,3 +316,74 @@ def study(periods: Sequence[float], noise: str, seeds: int, duration: float,
 
 def _key(period: float) -> str:
     return f'{period:g}'
+
+
+def plot(curves: dict, noise: str, path: pathlib.Path) -> None:
+    """One panel per period, like Figs. 4.4-4.6."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(curves), 1, figsize=(8, 2.6 * len(curves)), sharex=True,
+                             squeeze=False)
+    for ax, (key, (times, err)) in zip(axes[:, 0], curves.items()):
+        ax.plot(times, err, lw=0.4, alpha=0.3, color='tab:blue')
+        fixed = np.isfinite(err)
+        count = fixed.sum(axis=1)
+        mean = np.where(count > 0, np.where(fixed, err, 0.0).sum(axis=1) / np.maximum(count, 1),
+                        np.nan)
+        ax.plot(times, mean, lw=1.6, color='tab:red', label='mean over agents and seeds')
+        bound = THESIS_BOUNDS.get(float(key))
+        if bound is not None:
+            ax.axhline(bound, ls='--', color='k', lw=0.8, label=f'thesis bound {bound:g} m')
+        ax.set_ylabel('|error| (m)')
+        ax.set_title(f'Localization timer period {key} s, {noise} noise (thesis Figs. 4.4-4.6)')
+        ax.grid(alpha=0.3)
+        ax.legend(loc='upper right', fontsize=8)
+    axes[-1, 0].set_xlabel('time (s)')
+    axes[-1, 0].set_xlim(0.0, max(float(t[-1]) for t, _ in curves.values()))
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``localization_study``: run the periods and seeds, write error.png and summary.json."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--periods', type=float, nargs='+', default=[3.0, 5.0, 8.0],
+                        help='localization timer periods (s)')
+    parser.add_argument('--seeds', type=int, default=3)
+    parser.add_argument('--duration', type=float, default=200.0, help='seconds per trial')
+    parser.add_argument('--noise', choices=NOISE_PROFILES, default='thesis',
+                        help='fix noise profile: thesis (2 m on the fix) or toa (ranges)')
+    parser.add_argument('--agents', type=int, default=50, help='agents, beacons included')
+    parser.add_argument('--beacons', type=int, default=8)
+    parser.add_argument('--shape', default='circle_314',
+                        help='built-in shape name or .json/.svg/.png file')
+    parser.add_argument('--imu-period', type=float, default=0.1,
+                        help="IMU sample period (s); 0.1 as the simulator's 10 Hz IMU")
+    parser.add_argument('--out', required=True, help='results directory')
+    args = parser.parse_args(argv)
+    if args.agents <= 0:
+        print('localization_study: error: --agents must be positive', file=sys.stderr)
+        return 2
+    config = StudyConfig(agents=args.agents, beacons=args.beacons, shape=args.shape,
+                         imu_period_s=args.imu_period)
+    try:
+        summary, curves = study(args.periods, args.noise, args.seeds, args.duration, config,
+                                progress=lambda line: print(line, flush=True))
+    except (StudyError, ScenarioError, ShapeError) as exc:
+        print(f'localization_study: error: {exc}', file=sys.stderr)
+        return 2
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    plot(curves, args.noise, out / 'error.png')
+    (out / 'summary.json').write_text(json.dumps(summary, indent=2) + '\n')
+    print(json.dumps(summary, indent=2))
+    print(f'wrote {out / "error.png"} and {out / "summary.json"}')
+    return 0
+
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -14,7 +14,7 @@ import sys
 
 import pytest
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
+ROOT = pathlib.Path(__file__).resolve().parents[3]
 RUN_ALL = ROOT / 'benchmarks' / 'run_all.py'
 FIGURES = {
     'dsdv': ('link_break_s', 'cold_start_s', 'routing_bytes_per_s_per_agent', 'wall_s'),

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import json
 
-import evaluate
 import pytest
+
+from swarm_eval import evaluate
 
 pytest.importorskip('dask.distributed',
                     reason='needs dask[distributed] (requirements/python.txt: make bootstrap)')

@@ -1,4 +1,4 @@
-"""scripts/shape_study.py and swarm_sim.shape_study: one row per shape and method, every
+"""scripts/shape_study.py and swarm_eval.shape_study: one row per shape and method, every
 trial reported (refused, failed or not settled), with the table's cells."""
 
 from __future__ import annotations
@@ -8,18 +8,18 @@ import math
 
 import numpy as np
 import pytest
-import shape_study
 from shapely.geometry import box
 
-from swarm_mission.shape_gen import generate, shape_json
-from swarm_mission.shapes import load_shape, shape_from_polygon
-from swarm_sim.shape_study import (
+from swarm_eval import shape_study_cli as shape_study
+from swarm_eval.shape_study import (
     bearing_spread,
     markdown_table,
     row_metrics,
     run_trial,
     StudyTrial,
 )
+from swarm_mission.shape_gen import generate, shape_json
+from swarm_mission.shapes import load_shape, shape_from_polygon
 
 
 def test_a_tiny_study_writes_one_row_per_shape_and_method(tmp_path):
