@@ -39,7 +39,7 @@ from swarm_mission.shapes import load_shape, ShapeError
 from swarm_sim import plots
 from swarm_sim.headless import HeadlessSwarm, Scenario
 from swarm_sim.metrics import CHANGE_WINDOW_S, shape_response
-from swarm_sim.report import summarize
+from swarm_sim.report import dumps, summarize
 
 METHODS = ('bubble', 'fractal', 'forces')
 # Dynamic formations: (label, method, remesh).
@@ -184,9 +184,9 @@ def main(argv: list[str] | None = None) -> int:
                          for label, _, _ in DYNAMIC} for spec in args.morphs}
     lines += dynamic_table(dispersion)
     (out / 'comparison.md').write_text('\n'.join(lines) + '\n', encoding='utf-8')
-    (out / 'comparison.json').write_text(json.dumps(
+    (out / 'comparison.json').write_text(dumps(
         {'means': means, 'trials': static, 'coverage_lag': lags,
-         'smooth_change_dispersion': dispersion}, indent=2, default=str), encoding='utf-8')
+         'smooth_change_dispersion': dispersion}, indent=2), encoding='utf-8')
     plots.boxplots(out / 'boxplots.png', groups,
                    [(k, label) for k, label, _, _ in TABLE_KEYS])
     if dynamic:
