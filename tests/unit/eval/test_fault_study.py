@@ -202,3 +202,26 @@ def test_the_observation_window_does_not_restart_the_settled_hold():
     first, last = fault_cases.configure_fault(swarm, case, config, 0)
     assert swarm.scenario.min_duration_s == pytest.approx(last + config['observe'])
     assert all(t <= last for t, _ in swarm.scenario.events)
+
+
+def test_runtime_settings_change_the_medium_as_sim_node_does():
+    """swarm_sim.medium.apply_setting: a shorter range and a sweeping wall cut the link of
+    two agents 4 m apart; loss is the packet loss; an unknown name is refused."""
+    from swarm_sim.medium import apply_setting, MediumConfig, RadioMedium
+
+    medium = RadioMedium(MediumConfig(), np.random.default_rng(0), [])
+    ids, xy = [0, 1], np.array([[-2.0, 0.0], [2.0, 0.0]])
+    medium.update_positions(ids, xy)
+    assert list(medium.neighbours(0)) == [1]
+    apply_setting(medium, 'radio_range_m', 3.0, 0.0, 10.0)
+    medium.update_positions(ids, xy)
+    assert list(medium.neighbours(0)) == []
+    apply_setting(medium, 'radio_range_m', 25.0, 0.0, 10.0)
+    apply_setting(medium, 'radio_wall_speed_mps', 1.0, 5.0, 10.0)   # x = 0 at t = 15 s
+    assert medium.move_wall(15.0) == pytest.approx(0.0)
+    medium.update_positions(ids, xy)
+    assert list(medium.neighbours(0)) == []
+    apply_setting(medium, 'loss', 0.3, 15.0, 10.0)
+    assert medium.config.loss == pytest.approx(0.3)
+    with pytest.raises(ValueError, match='unknown medium setting'):
+        apply_setting(medium, 'gravity', 1.0, 0.0, 10.0)
