@@ -71,3 +71,13 @@ def test_the_checks_can_fail(tmp_path):
     setup_py = tmp_path / 'setup.py'
     setup_py.write_text("setup(entry_points={'console_scripts': ['x = pkg.mod:main']})\n")
     assert _console_scripts(setup_py) == ['x = pkg.mod:main']
+
+
+@pytest.mark.parametrize('path', sorted([*ROOT.glob('scripts/*.py'),
+                                         *ROOT.glob('benchmarks/*.py')]),
+                         ids=lambda p: str(p.relative_to(ROOT)))
+def test_scripts_are_at_most_thin_wrappers(path: pathlib.Path):
+    """Library code lives in the packages (issue 22): a file of scripts/ or benchmarks/
+    is at most 150 lines."""
+    lines = len(path.read_text(encoding='utf-8').splitlines())
+    assert lines <= 150, f'{path.relative_to(ROOT)}: {lines} lines; move its code to a package'
