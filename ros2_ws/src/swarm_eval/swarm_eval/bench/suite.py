@@ -4,13 +4,13 @@ Every figure comes from the package code (no algorithm is re-implemented here); 
 are medians of --repeats runs, per swarm size of --sizes:
 
 - dsdv:          convergence of the real DsdvRouters after a link break and from a cold
-                 start, in simulated seconds (benchmarks/bench_dsdv.py ``bench``; one
+                 start, in simulated seconds (``swarm_eval.bench.dsdv.bench``; one
                  random geometric graph per repeat, --dsdv-repeats, since the figure is
                  deterministic for a graph and a 1000-agent run takes minutes);
 - trilateration: one localization round of the swarm (``Localizer.localize`` of every
                  agent with four beacons in radio range);
 - partition:     bubble packing and randomized fractals of the thesis circle scaled to
-                 the swarm (benchmarks/bench_partition.py ``bench``);
+                 the swarm (``swarm_eval.bench.partition.bench``);
 - cost_rows:     visibility graph + Dijkstra (``VisibilityGraph.cost_row``) in the thesis
                  workspace with its four obstacles scaled to the swarm: one agent's row
                  (median agent in a steady round; worst agent in the first round after new
@@ -20,12 +20,12 @@ are medians of --repeats runs, per swarm size of --sizes:
 - medium:        one step of the radio medium (``RadioMedium.update_positions``: links
                  with line of sight; then one 24-byte broadcast per agent transmitted and
                  delivered);
-- world:         the bare pybullet world of swarm_sim (scripts/sim_benchmark.py in a
+- world:         the bare pybullet world of swarm_sim (``swarm_eval.sim_benchmark`` in a
                  child process: --world-sizes robots of the three types on rough terrain
                  in the +/-50 m workspace, DIRECT mode, its default physics rate, the
                  state read after every step): real-time factor (issue 6's target: 20x
                  with 50 robots);
-- evaluator:     whole headless trials of the thesis scenario (scripts/evaluate.py
+- evaluator:     whole headless trials of the thesis scenario (``swarm_eval.scenario``
                  ``run_trial``: 50 agents, 8 beacons, circle_314, bubble) bounded to
                  --eval-duration simulated seconds: wall and CPU seconds per trial, sim
                  seconds per wall second, trials per minute;
