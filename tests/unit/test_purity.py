@@ -9,10 +9,18 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 SRC = ROOT / 'ros2_ws' / 'src'
 
 
+# ROS-side helpers shared by the nodes of several packages, so that no package imports
+# another's node module: rclpy endpoints without default QoS event handlers, and the
+# main() of every node (one-line errors for bad input).
+SHARED_ROS_HELPERS = {'swarm_agent/lean_endpoints.py', 'swarm_mission/node_runner.py'}
+
+
 def _is_allowed(path: pathlib.Path) -> bool:
-    """Nodes, launch files and tests may import rclpy; nothing else may."""
+    """Nodes, the shared ROS helpers, launch files and tests may import rclpy; nothing
+    else may."""
     return (
         path.name.endswith('_node.py')
+        or f'{path.parent.name}/{path.name}' in SHARED_ROS_HELPERS
         or path.name.endswith('.launch.py')
         or 'launch' in path.parts
         or 'test' in path.parts

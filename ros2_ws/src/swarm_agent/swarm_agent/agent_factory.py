@@ -6,14 +6,16 @@ paths run identical configurations.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 import dataclasses
+from typing import Any
 
 import numpy as np
 
 from swarm_agent.brain import AgentBrain, BrainConfig, BrainConfigError
 from swarm_agent.localization import LocalizationConfig
 from swarm_agent.lqr import design_lqr
+from swarm_agent.parameters import configured
 from swarm_mission.robot_types import (
     GRAVITY,
     load_lqr_design,
@@ -30,13 +32,16 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
                localization_period_s: float | None = None,
                robot_types_file: str | None = None, external_pose: bool = False,
                localization: LocalizationConfig | None = None,
-               initial_position_std: float | None = None) -> AgentBrain:
+               initial_position_std: float | None = None,
+               settings: Mapping[str, Any] | None = None) -> AgentBrain:
     """An AgentBrain for one robot, with the LQR gains of its type (eqs. 3.108-3.111).
 
     ``initial_position`` is the robot's deployment prior, the position it was configured
     to stand at, and ``initial_position_std`` (m per axis) its stated uncertainty (the
     placement error, ``swarm_sim.fleet.place_fleet``); None keeps the localization
     config's. The estimate becomes the robot's own with its first GPS or trilateration fix.
+    ``settings`` are generated parameters (``swarm_agent.parameters``, dotted names) set
+    on the brain's configuration last; ParameterError names a bad one.
     """
     types = load_robot_types(robot_types_file)
     robot = robot_type(types, agent_type)
@@ -55,6 +60,8 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
         method=method, outer_period_s=outer_period_s,
         consensus_period_s=consensus_period_s, localization=loc,
         type_radii={t: r.coverage_radius for t, r in types.items()})
+    if settings:
+        config = configured(config, settings)
     # eq. 3.111's u_max shapes the LQR weights of the linear model; the actuator must
     # also overcome Coulomb friction (mu_1 m g is 3.1 N for type 3, above u_max alone).
     u_limit = design.u_max + 2.0 * robot.dry_friction * robot.mass * GRAVITY

@@ -56,6 +56,7 @@ from swarm_agent.mesh_messages import (
     NeighbourInfo,
 )
 from swarm_agent.packet import Kind, Packet
+from swarm_agent.parameters import tunable
 from swarm_agent.setpoint import avoid_collisions, SetpointParams, velocity_setpoint
 from swarm_mission.contour import sample_boundary
 from swarm_mission.goals import Goal
@@ -88,21 +89,34 @@ class BrainConfig:
     agent_type: int
     is_beacon: bool = False
     method: str = 'bubble'
-    outer_period_s: float = 0.5          # propagation, forces and setpoints at 2 Hz
+    outer_period_s: float = tunable(
+        0.5, 'Period of the outer loop (setpoint, forces), s (thesis 2 Hz)', low=0.01,
+        high=10.0)
     # Cost rows are flooded once per consensus round: every robot's row to every robot
     # is O(N^2) frames, so rounds are slower than the 2 Hz setpoint loop (measured on the
     # 50-agent thesis scenario: 0.5 s rounds made routing 90 % of the evaluator's time).
-    consensus_period_s: float = 2.0
-    settle_speed: float = 0.01           # m/s, eq. 4.1
-    neighbour_stale_s: float = 3.0       # neighbour info older than this is ignored
-    range_stale_s: float = 2.0           # TOA ranges older than this are not used
-    proximity_stale_s: float = 0.5       # proximity scans older than this are not used
-    forces_contour_step: float = 0.05    # m, boundary sample spacing for the forces method
-    hold_radius: float = 0.3             # m: within this of the goal the agent parks
-    resume_radius: float = 0.8           # m: a parked agent moves again beyond this
+    consensus_period_s: float = tunable(
+        2.0, 'Period of cost reports and Hungarian assignment rounds, s', low=0.01,
+        high=60.0)
+    settle_speed: float = tunable(0.01, 'Below this speed a robot counts as settled, m/s '
+                                  '(eq. 4.1)', low=0.0, high=1.0, live=True)
+    neighbour_stale_s: float = tunable(3.0, 'Neighbour info older than this is ignored, s',
+                                       low=0.1, high=60.0, live=True)
+    range_stale_s: float = tunable(2.0, 'TOA ranges older than this are not used, s',
+                                   low=0.01, high=60.0, live=True)
+    proximity_stale_s: float = tunable(0.5, 'Proximity scans older than this are not used, s',
+                                       low=0.01, high=10.0, live=True)
+    forces_contour_step: float = tunable(
+        0.05, 'Boundary sample spacing of the forces method, m', low=0.005, high=5.0)
+    hold_radius: float = tunable(0.3, 'Within this distance of its goal the robot parks, m',
+                                 low=0.001, high=10.0, live=True)
+    resume_radius: float = tunable(0.8, 'A parked robot moves again beyond this distance, m',
+                                   low=0.001, high=20.0, live=True)
     # A parked robot (zero force) has stopped after this long (dry friction stops one at
     # 0.5 m/s within a second); from then on its velocity is known to be zero.
-    stand_still_after_s: float = 2.0
+    stand_still_after_s: float = tunable(
+        2.0, 'A parked robot has stopped after this long: zero-velocity updates, s',
+        low=0.0, high=60.0, live=True)
     localization: LocalizationConfig = field(default_factory=LocalizationConfig)
     dsdv: DsdvConfig = field(default_factory=DsdvConfig)
     setpoint: SetpointParams = field(default_factory=SetpointParams)
@@ -122,6 +136,10 @@ class BrainConfig:
             raise BrainConfigError(
                 f'consensus_period_s ({self.consensus_period_s}) must be at least '
                 f'outer_period_s ({self.outer_period_s})')
+        if not 0.0 < self.hold_radius < self.resume_radius:
+            raise BrainConfigError(
+                f'hold_radius ({self.hold_radius} m) must be positive and below '
+                f'resume_radius ({self.resume_radius} m)')
 
 
 @dataclass

@@ -52,6 +52,7 @@ import zlib
 
 from swarm_agent import wire
 from swarm_agent.packet import BROADCAST, Kind, Packet
+from swarm_agent.parameters import tunable
 from swarm_agent.wire import Advert, INFINITE_HOPS, WireError
 
 LOG = logging.getLogger(__name__)
@@ -81,18 +82,25 @@ def _seq_add(a: int, n: int) -> int:
 @dataclass
 class DsdvConfig:
     """Timers of the router (seconds). The thesis runs its loop at 2 Hz."""
-
-    heartbeat_period_s: float = 0.5
-    neighbour_timeout_s: float = 2.0
-    full_dump_period_s: float = 2.0
-    incremental_min_interval_s: float = 0.25
-    default_ttl: int = 32
-    dedup_memory: int = 4096
-    reassembly_timeout_s: float = 5.0
-    stale_generations: int = 6  # full dumps a shorter route may lag before a longer one wins
-    flood_extra_copies: float = 2.0  # least extra relays per neighbourhood (loss redundancy)
-    flood_miss_target: float = 0.01  # wanted chance that one robot misses one flood hop
-    loss_memory: float = 0.95        # per-heartbeat decay of the link loss counts
+    heartbeat_period_s: float = tunable(0.5, 'Heartbeat period, s (3.1.2)', low=0.01, high=60.0)
+    neighbour_timeout_s: float = tunable(2.0, 'Silence that ends a neighbour, s', low=0.01,
+                                         high=600.0)
+    full_dump_period_s: float = tunable(2.0, 'Full route dump period, s (3.1.2)', low=0.01,
+                                        high=600.0)
+    incremental_min_interval_s: float = tunable(
+        0.25, 'Least interval between incremental route updates, s', low=0.0, high=60.0)
+    default_ttl: int = tunable(32, 'Hops a packet may travel', low=1, high=255)
+    dedup_memory: int = tunable(4096, 'Packets kept to drop duplicates', low=1, high=10**6)
+    reassembly_timeout_s: float = tunable(5.0, 'An incomplete fragmented message is dropped '
+                                          'after this long, s', low=0.01, high=600.0)
+    stale_generations: int = tunable(6, 'Full dumps a shorter route may lag before a longer '
+                                     'one wins', low=1, high=1000)
+    flood_extra_copies: float = tunable(2.0, 'Least extra relays per neighbourhood (loss '
+                                        'redundancy)', low=0.0, high=100.0)
+    flood_miss_target: float = tunable(0.01, 'Wanted chance that one robot misses one flood '
+                                       'hop', low=1e-6, high=1.0)
+    loss_memory: float = tunable(0.95, 'Per-heartbeat decay of the link loss counts', low=0.0,
+                                 high=1.0)
 
 
 @dataclass

@@ -45,23 +45,37 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from swarm_agent.parameters import tunable
+
 
 @dataclass
 class ForceParams:
     """Gains of thesis 4.3, the numerical guards of the singular terms, and the virtual
     friction that turns the force into a velocity setpoint (see the module docstring)."""
 
-    k_a: float = 250.0      # attractive (outside)
-    k_r: float = 150.0      # repulsive from the boundary (inside)
-    k_m: float = 1500.0     # inter-member
-    k_t: float = 1000.0     # transition (outside, near the boundary)
-    k_o: float = 5000.0     # obstacles
-    buffer: float = 0.5     # m, width of the blending band just inside the boundary
-    min_gap: float = 0.05   # m, floor of the (d - d_o) and (d - d_c) denominators
-    member_range: float = 3.0  # m, where the (shifted) inter-member force reaches zero
-    speed_per_newton: float = 0.001  # m/s per N above the kinetic friction (1 / b)
-    kinetic_friction: float = 40.0   # N, F_k: a moving agent stops below this force
-    static_friction: float = 120.0   # N, F_s: an agent at rest starts above this force
+    k_a: float = tunable(250.0, 'Attractive gain outside the shape (4.3)', low=0.0, high=1e6,
+                         live=True)
+    k_r: float = tunable(150.0, 'Repulsive gain from the boundary inside (4.3)', low=0.0,
+                         high=1e6, live=True)
+    k_m: float = tunable(1500.0, 'Inter-member gain (4.3)', low=0.0, high=1e6, live=True)
+    k_t: float = tunable(1000.0, 'Transition gain outside, near the boundary (4.3)', low=0.0,
+                         high=1e6, live=True)
+    k_o: float = tunable(5000.0, 'Obstacle gain (4.3)', low=0.0, high=1e6, live=True)
+    buffer: float = tunable(0.5, 'Width of the blending band just inside the boundary, m',
+                            low=0.0, high=10.0, live=True)
+    min_gap: float = tunable(0.05, 'Floor of the (d - d_o) and (d - d_c) denominators, m',
+                             low=1e-4, high=1.0, live=True)
+    member_range: float = tunable(
+        3.0, 'Where the (shifted) inter-member force reaches zero, m', low=0.01, high=100.0,
+        live=True)
+    speed_per_newton: float = tunable(
+        0.001, 'Setpoint speed per newton above the kinetic friction, m/s/N (1 / b)',
+        low=0.0, high=1.0, live=True)
+    kinetic_friction: float = tunable(
+        40.0, 'F_k: a moving agent stops below this force, N', low=0.0, high=1e4, live=True)
+    static_friction: float = tunable(
+        120.0, 'F_s: an agent at rest starts above this force, N', low=0.0, high=1e4,
+        live=True)
 
     def setpoint(self, force, v_max: float, at_rest: bool) -> np.ndarray:
         """Velocity setpoint (m/s) under ``force`` (N): the steady velocity of a mass with

@@ -28,6 +28,7 @@ import numpy as np
 from scipy.special import chdtri
 
 from swarm_agent.kalman import KalmanFilter
+from swarm_agent.parameters import tunable
 from swarm_agent.trilateration import DegenerateGeometryError, trilaterate
 
 LOG = logging.getLogger(__name__)
@@ -50,27 +51,47 @@ class Mode(enum.IntEnum):
 class LocalizationConfig:
     """Thesis 4.2 defaults."""
 
-    period_s: float = 3.0
-    accel_noise_std: float = 0.01         # m/s^2
-    accel_bias_max: float = 0.1 * MG      # m/s^2
-    min_beacons: int = 3
-    misses_before_home: int = 3
-    home_position_std: float = 1.0        # m: RETURN_HOME only when less certain (0: thesis)
-    initial_position_std: float = 1.0     # m
-    initial_velocity_std: float = 0.01    # m/s: a robot is deployed standing still
-    max_residual: float = 3.0             # m: worse trilaterations are rejected
-    max_fix_std: float = 5.0              # m: less certain fix axes are not used
-    gate: float = 13.8                    # chi-square (2 dof, 99.9 %) innovation gate
-    max_gated: int = 3                    # then gated fixes that agree reinitialize
-    max_speed: float = 1.0                # m/s: the robots' reach between two fixes
-    zero_velocity_std: float = 0.01       # m/s: a parked robot's velocity (see stand_still)
-    range_updates: bool = True            # ranges update the filter directly (see module)
+    period_s: float = 3.0                 # s (agent_node parameter localization_period_s)
+    accel_noise_std: float = tunable(
+        0.01, "IMU acceleration noise of the filter's model, m/s^2 (3.1.4)", low=1e-6, high=10.0)
+    accel_bias_max: float = tunable(
+        0.1 * MG, "Accelerometer bias bound of the filter's model, m/s^2 (4.2: 0.1 mg)",
+        low=0.0, high=1.0)
+    min_beacons: int = tunable(3, 'Beacon neighbours a localization tick needs (3.1.1)',
+                               low=3, high=64, live=True)
+    misses_before_home: int = tunable(3, 'Missed ticks before RETURN_HOME (3.1.3)',
+                                      low=1, high=1000, live=True)
+    home_position_std: float = tunable(
+        1.0, 'RETURN_HOME only when the worst-axis std exceeds this, m (0: the thesis rule)',
+        low=0.0, high=100.0, live=True)
+    initial_position_std: float = 1.0     # m (agent_node parameter placement_std_m)
+    initial_velocity_std: float = tunable(
+        0.01, 'Velocity uncertainty at deployment, m/s (robots are deployed standing)',
+        low=0.0, high=10.0)
+    max_residual: float = tunable(3.0, 'Trilaterations with a worse residual are rejected, m',
+                                  low=0.01, high=100.0, live=True)
+    max_fix_std: float = tunable(5.0, 'Fix axes less certain than this are not used, m',
+                                 low=0.01, high=100.0, live=True)
+    gate: float = tunable(13.8, 'Innovation gate, chi-square 2 dof (13.8: 99.9 %)',
+                          low=1.0, high=1000.0, live=True)
+    max_gated: int = tunable(3, 'Gated fixes in a row after which agreeing ones reinitialize',
+                             low=1, high=100, live=True)
+    max_speed: float = tunable(1.0, "The robots' reach between two fixes, m/s",
+                               low=0.01, high=10.0, live=True)
+    zero_velocity_std: float = tunable(
+        0.01, "A parked robot's velocity std in its zero-velocity updates, m/s",
+        low=1e-4, high=1.0, live=True)
+    range_updates: bool = tunable(
+        True, 'TOA ranges update the filter directly while its prior is narrow (IEKF)',
+        live=True)
     # A beacon's own estimate error persists over 20-40 s (its autocorrelation from one
     # 3 s tick to the next is 0.85-0.92 in the shape study), so a filter taking it
     # as white noise at every tick counts one error several times and grows confident
     # in it. Its variance is inflated: on three shapes of the study the maximum errors
     # were 1.5-1.6 m with 4, 1.8-2.6 m without, 1.4-2.3 m with 8.
-    beacon_variance_inflation: float = 4.0
+    beacon_variance_inflation: float = tunable(
+        4.0, "Factor on a beacon's advertised variance (its error persists 20-40 s)",
+        low=1.0, high=100.0, live=True)
 
 
 def _chi2_999(dof: int) -> float:

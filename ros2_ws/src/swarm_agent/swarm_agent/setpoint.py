@@ -24,19 +24,29 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from swarm_agent.parameters import tunable
+
 
 @dataclass
 class SetpointParams:
     """Outer-loop and avoidance parameters (defaults of agent_node's parameters)."""
 
-    gain: float = 0.4            # 1/s: setpoint speed per metre of remaining path
-    v_max: float = 0.5           # m/s, thesis 3.2.4
-    avoid_rate: float = 1.0      # 1/s: a pair closes its gap at most this fast per metre
-    avoid_buffer: float = 0.3    # m kept free beyond the summed coverage radii
-    swerve: float = 0.5          # share of the speed towards a close neighbour turned right
-    yield_margin: float = 0.0    # m a parked robot keeps beyond avoid_buffer: it steps
-    #                              aside for a robot that squeezes past it
-    arrive_radius: float = 0.02  # m: closer than this, command zero
+    gain: float = tunable(0.4, 'Setpoint speed per metre of remaining path, 1/s (3.2.4)',
+                          low=1e-3, high=100.0, live=True)
+    v_max: float = tunable(0.5, 'Setpoint speed limit, m/s (3.2.4)', low=1e-3, high=10.0,
+                           live=True)
+    avoid_rate: float = tunable(
+        1.0, 'A pair closes its gap at most this fast per metre of gap, 1/s',
+        low=1e-3, high=100.0, live=True)
+    avoid_buffer: float = tunable(0.3, 'Gap kept free beyond the summed coverage radii, m',
+                                  low=0.0, high=10.0, live=True)
+    swerve: float = tunable(0.5, 'Share of the speed towards a close neighbour turned right',
+                            low=0.0, high=1.0, live=True)
+    yield_margin: float = tunable(
+        0.0, 'A parked robot steps aside for one closer than this beyond avoid_buffer, m',
+        low=0.0, high=10.0, live=True)
+    arrive_radius: float = tunable(0.02, 'Closer than this to the goal the setpoint is zero, m',
+                                   low=0.0, high=10.0, live=True)
 
     def __post_init__(self) -> None:
         for name in ('gain', 'v_max', 'avoid_rate'):

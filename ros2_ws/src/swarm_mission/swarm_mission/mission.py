@@ -39,7 +39,7 @@ from swarm_mission.beacon_goals import (
 )
 from swarm_mission.coverability import check_coverable
 from swarm_mission.goals import Goal, PartitionError
-from swarm_mission.partition import partition, PartitionResult
+from swarm_mission.partition import METHODS, partition, PartitionResult
 from swarm_mission.shapes import load_shape, Shape, ShapeError
 
 LOG = logging.getLogger(__name__)
@@ -178,6 +178,9 @@ class MissionConfig:
     #                                  reach of beacons that beacon goals are chosen for
 
     def __post_init__(self) -> None:
+        if self.method not in (*METHODS, 'forces'):
+            raise ShapeError(f'unknown formation method {self.method!r}; use one of '
+                             f'{", ".join((*METHODS, "forces"))} (mission method)')
         if not (math.isfinite(self.radio_range_m) and self.radio_range_m > 0.0):
             raise ShapeError(f'radio_range_m must be a finite number > 0 m, got '
                              f'{self.radio_range_m!r} (mission radio_range_m)')

@@ -19,8 +19,6 @@ from __future__ import annotations
 import sys
 
 from rcl_interfaces.msg import ParameterDescriptor
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 import yaml
@@ -28,6 +26,7 @@ import yaml
 from swarm_mission import qos
 from swarm_mission.conversions import goals_to_msg, shape_from_msg, shape_to_msg
 from swarm_mission.mission import load_sequence, Mission, MissionConfig, parse_morph
+from swarm_mission.node_runner import run_node
 from swarm_mission.partition import PartitionError
 from swarm_mission.robot_types import load_robot_types, parse_type_counts, RobotTypeError
 from swarm_mission.shapes import load_shape, ShapeError
@@ -56,7 +55,23 @@ PARAMETERS = {
                             '(the radio_range_m of sim_node)'),
     'remesh': ('incremental', 'Bubble packing on a changed shape: incremental (goals '
                               'move, keeping their ids) or scratch (new goals, re-assigned)'),
+    'robot_types_file': ('', "Robot type table YAML (coverage radii; default: the "
+                             "package's thesis Table 4.1); the agents' robot_types_file"),
 }
+
+
+def _fleet(path: str) -> tuple[dict[int, int], set[int]]:
+    """Agent types and beacon ids of a fleet file; ShapeError names the file."""
+    try:
+        with open(path, encoding='utf-8') as stream:
+            robots = yaml.safe_load(stream)['robots']
+        return ({int(r['id']): int(r['type']) for r in robots},
+                {int(r['id']) for r in robots if r.get('beacon', False)})
+    except OSError as exc:
+        raise ShapeError(f'fleet_file {path}: {exc.strerror}') from None
+    except (yaml.YAMLError, KeyError, TypeError, ValueError) as exc:
+        raise ShapeError(f'fleet_file {path} is not a fleet (robots: [{{id, type, beacon, '
+                         f'x, y}}, ...]): {type(exc).__name__} {exc}') from None
 
 
 class MissionNode(Node):
@@ -64,16 +79,15 @@ class MissionNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__('mission', **kwargs)
+        # Read once, at start (shapes change through the topic and the service).
         for name, (default, text) in PARAMETERS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=text))
+            self.declare_parameter(name, default,
+                                   ParameterDescriptor(description=text, read_only=True))
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
         self.params = p
-        types = load_robot_types()
+        types = load_robot_types(p['robot_types_file'] or None)
         if p['fleet_file']:
-            with open(p['fleet_file'], encoding='utf-8') as stream:
-                robots = yaml.safe_load(stream)['robots']
-            agent_types = {int(r['id']): int(r['type']) for r in robots}
-            beacons = {int(r['id']) for r in robots if r.get('beacon', False)}
+            agent_types, beacons = _fleet(p['fleet_file'])
         else:
             beacons = None
             counts = parse_type_counts(p['type_counts'])
@@ -177,20 +191,7 @@ class MissionNode(Node):
 
 def main(args=None) -> None:
     """Run the mission node (``ros2 run swarm_mission mission_node``)."""
-    rclpy.init(args=args)
-    try:
-        node = MissionNode()
-    except (ShapeError, PartitionError, RobotTypeError) as exc:
-        print(f'mission_node: {exc}', file=sys.stderr)
-        rclpy.try_shutdown()
-        sys.exit(2)
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(MissionNode, 'mission_node', args)
 
 
 if __name__ == '__main__':
