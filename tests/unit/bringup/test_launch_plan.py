@@ -165,3 +165,24 @@ def test_type_counts_text_is_sorted_by_type(counts):
     text = type_counts_text(counts)
     assert [int(p.split(':')[0]) for p in text.split(',')] == sorted(counts)
     assert sum(int(p.split(':')[1]) for p in text.split(',')) == sum(counts.values())
+
+
+def test_the_launcher_plans_from_its_command_line(tmp_path):
+    """launch_swarm's flags reach the plan; the monitor holds the clock at t = 0."""
+    from swarm_bringup.scenario import parse_args, validate
+    from swarm_bringup.supervisor_node import swarm_run
+
+    args = parse_args(['--agents', '8', '--beacons', '3', '--shape',
+                       str(ROOT / 'tests' / 'data' / 'square_8m.json'), '--half-size', '15',
+                       '--composed', '--rtf', '2', '--markers', '--control-rate', '25',
+                       '--morph', 'move:1@10+5', '--out', str(tmp_path)])
+    _, counts, _, fleet = validate(args)
+    run = swarm_run(args, tmp_path / 'fleet.yaml', tmp_path)
+    sim, mission, agents = swarm_plan(run, fleet, counts)
+    assert sim.parameters['truth_subscribers'] == 1
+    assert sim.parameters['record_dir'] == str(tmp_path)
+    assert (sim.parameters['real_time_factor'], sim.parameters['marker_rate_hz']) == (2.0, 1.0)
+    assert sim.parameters['half_size'] == 15.0 and sim.parameters['sensor_batch'] is True
+    assert mission.parameters['morph'] == 'move:1@10+5'
+    assert agents.parameters['control_rate_hz'] == 25.0
+    assert agents.parameters['type_counts'] == type_counts_text(counts)
