@@ -105,7 +105,12 @@ def test_a_swarm_split_over_two_hosts_forms_the_shape(processes, two_hosts, ros_
     assert host_b.poll() is None, b_log.read_text()[-3000:]
     rx, tx = pair.link_bytes('a')
     host_b.send_signal(signal.SIGINT)
-    assert host_b.wait(timeout=30) == 0, b_log.read_text()[-3000:]
+    try:
+        code = host_b.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        pytest.fail('host B did not stop within 30 s of SIGINT: '
+                    + b_log.read_text()[-3000:])
+    assert code == 0, b_log.read_text()[-3000:]
 
     m = json.loads((tmp_path / 'a' / 'metrics.json').read_text())['trials'][0]
     summary = (f'{m["outcome"]}, settling {m.get("settling_time")} s, '
