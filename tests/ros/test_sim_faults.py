@@ -74,36 +74,36 @@ def _check_run_time_settings(executor, sim, client):
     def broadcast(count):
         # Straight into the sim's medium (what its /radio/tx callback does per frame)
         for k in range(count):
-            sim.medium.transmit(sim.t, Packet(source=1, destination=BROADCAST, kind=0,
+            sim.world.medium.transmit(sim.world.t, Packet(source=1, destination=BROADCAST, kind=0,
                                               sequence=k, ttl=1, payload=b'hb'))
 
     assert _until(executor, client.services_are_ready)
-    assert _until(executor, lambda: sim.t > 0.5)
-    assert sorted(sim.medium.neighbours(1)) == [0, 2]
+    assert _until(executor, lambda: sim.world.t > 0.5)
+    assert sorted(sim.world.medium.neighbours(1)) == [0, 2]
     assert set_param('radio_range_m', 5.0).successful
-    assert _until(executor, lambda: sim.medium.neighbours(1) == [])  # links follow
+    assert _until(executor, lambda: sim.world.medium.neighbours(1) == [])  # links follow
     refused = set_param('radio_range_m', -1.0)
     assert not refused.successful and 'radio range must be a positive' in refused.reason
-    assert sim.medium.config.range_m == 5.0
+    assert sim.world.medium.config.range_m == 5.0
     assert set_param('radio_range_m', 25.0).successful
-    assert _until(executor, lambda: sorted(sim.medium.neighbours(1)) == [0, 2])
+    assert _until(executor, lambda: sorted(sim.world.medium.neighbours(1)) == [0, 2])
 
     assert set_param('loss', 1.0).successful
-    before = sim.medium.stats.dropped_loss
+    before = sim.world.medium.stats.dropped_loss
     broadcast(20)
-    assert _until(executor, lambda: sim.medium.stats.dropped_loss == before + 2 * 20)
-    assert not set_param('loss', 1.5).successful and sim.medium.config.loss == 1.0
+    assert _until(executor, lambda: sim.world.medium.stats.dropped_loss == before + 2 * 20)
+    assert not set_param('loss', 1.5).successful and sim.world.medium.config.loss == 1.0
     assert set_param('loss', 0.0).successful
 
     # A wall from x = -20 m at 5 m/s reaches the robots (x 0..12) within a few seconds
     # of sim time and cuts 0-1 and 1-2 while it stands between them.
-    t0 = sim.t
+    t0 = sim.world.t
     assert set_param('radio_wall_speed_mps', 5.0).successful
     # The wall starts when the sim applied the setting, which it kept stepping around.
-    assert sim.medium.wall is not None and t0 <= sim.medium.wall.t0 <= sim.t
-    assert _until(executor, lambda: len(sim.medium.neighbours(1)) < 2, timeout=30.0)
-    assert _until(executor, lambda: sim.medium.wall is None, timeout=30.0)  # it left
-    assert _until(executor, lambda: sorted(sim.medium.neighbours(1)) == [0, 2])
+    assert sim.world.medium.wall is not None and t0 <= sim.world.medium.wall.t0 <= sim.world.t
+    assert _until(executor, lambda: len(sim.world.medium.neighbours(1)) < 2, timeout=30.0)
+    assert _until(executor, lambda: sim.world.medium.wall is None, timeout=30.0)  # it left
+    assert _until(executor, lambda: sorted(sim.world.medium.neighbours(1)) == [0, 2])
 
 
 def test_radio_kill_and_obstacle_move_on_command_bad_commands_ignored(tmp_path):
@@ -140,28 +140,28 @@ def _check_radio_obstacle_and_markers(executor, sim, probe):
                               QoSProfile(**qos.STATE))
 
     def wall_height_at(x, y):
-        return float(sim.backend.ground_height([[x, y]])[0])
+        return float(sim.world.backend.ground_height([[x, y]])[0])
 
-    assert _until(executor, lambda: sim.t > 0.5)
-    assert sorted(sim.medium.neighbours(1)) == [0]     # the wall shadows 1-2
+    assert _until(executor, lambda: sim.world.t > 0.5)
+    assert sorted(sim.world.medium.neighbours(1)) == [0]     # the wall shadows 1-2
     assert wall_height_at(9.0, 0.0) > 0.5              # a prism stands there
     _until(executor, lambda: radio_off.get_subscription_count() > 0)
     radio_off.publish(Int32MultiArray(data=[0, 99]))   # 99: not in the fleet
-    assert _until(executor, lambda: sim.medium.neighbours(1) == [])
-    assert sim.alive.all()                             # the robot stays in the world
+    assert _until(executor, lambda: sim.world.medium.neighbours(1) == [])
+    assert sim.world.alive.all()                             # the robot stays in the world
     radio_on.publish(Int32MultiArray(data=[0]))
-    assert _until(executor, lambda: sim.medium.neighbours(1) == [0])
+    assert _until(executor, lambda: sim.world.medium.neighbours(1) == [0])
 
     for bad in ([0.0, 1.0], [5.0, 0.0, 10.0], [0.5, 0.0, 10.0], [0.0, math.nan, 1.0]):
         move.publish(Float64MultiArray(data=bad))      # short, no obstacle 5, 0.5, NaN
-    t_bad = sim.t
-    assert _until(executor, lambda: sim.t > t_bad + 1.0)
-    assert sorted(sim.medium.neighbours(1)) == [0] and wall_height_at(9.0, 0.0) > 0.5
+    t_bad = sim.world.t
+    assert _until(executor, lambda: sim.world.t > t_bad + 1.0)
+    assert sorted(sim.world.medium.neighbours(1)) == [0] and wall_height_at(9.0, 0.0) > 0.5
 
     move.publish(Float64MultiArray(data=[0.0, 0.0, 10.0]))   # out of the way
-    assert _until(executor, lambda: sorted(sim.medium.neighbours(1)) == [0, 2])
+    assert _until(executor, lambda: sorted(sim.world.medium.neighbours(1)) == [0, 2])
     assert wall_height_at(9.0, 0.0) < 0.1 and wall_height_at(9.0, 10.0) > 0.5
-    assert sim.obstacles[0].centroid.y == pytest.approx(10.0)
+    assert sim.world.obstacles[0].centroid.y == pytest.approx(10.0)
 
     # The RViz view follows: the moved obstacle, the links, the mode agent 2 reports.
     state_pub.publish(AgentState(id=2, mode=AgentState.MODE_LOST))
@@ -178,7 +178,7 @@ def _check_radio_obstacle_and_markers(executor, sim, probe):
     # the view still draws them between the right robots (1 at x = 6, 2 at x = 12).
     kill = probe.create_publisher(Int32MultiArray, '/swarm/kill', 10)
     kill.publish(Int32MultiArray(data=[0]))
-    assert _until(executor, lambda: not sim.alive[0])
+    assert _until(executor, lambda: not sim.world.alive[0])
     views.clear()
     assert _until(executor, lambda: len(views) > 0)
     lines = {(m.ns, m.id): m for m in views[-1].markers}[('links', 0)]
@@ -200,18 +200,19 @@ def test_the_world_takes_a_composed_process_commands_in_one_batch(tmp_path):
         topics = {name for name, _ in probe.get_topic_names_and_types()}
         assert not any(t.endswith('/cmd_force') for t in topics), topics
         pub.publish(ForceBatch(ids=[0, 1], fx=[1.0, 0.0], fy=[0.0, -2.0], stamps=[0.0, 0.0]))
-        assert _until(executor, lambda: sim.forces[1, 1] == -2.0)
-        assert sim.forces[0].tolist() == [1.0, 0.0] and sim.force_stamp.tolist() == [0.0, 0.0]
+        assert _until(executor, lambda: sim.world.forces[1, 1] == -2.0)
+        assert sim.world.forces[0].tolist() == [1.0, 0.0]
+        assert sim.pacer.stamp.tolist() == [0.0, 0.0]
         # Both answered t = 0: the world steps (0.2 s ahead at most) and waits again.
-        assert _until(executor, lambda: sim.t >= 0.2 - 1e-9)
-        assert sim.t <= 0.2 + 1e-9
+        assert _until(executor, lambda: sim.world.t >= 0.2 - 1e-9)
+        assert sim.world.t <= 0.2 + 1e-9
         pub.publish(ForceBatch(ids=[0, 1], fx=[5.0], fy=[0.0, 0.0], stamps=[0.2, 0.2]))
         pub.publish(ForceBatch(ids=[1, 7], fx=[3.0, 1.0], fy=[0.0, 0.0],
                                stamps=[math.nan, 0.2]))    # no stamp, no robot 7
         pub.publish(ForceBatch(ids=[0], fx=[0.5], fy=[0.5], stamps=[0.2]))
-        assert _until(executor, lambda: sim.forces[0, 0] == 0.5)
-        assert sim.forces[1].tolist() == [0.0, -2.0]       # the malformed ones were dropped
-        assert np.isfinite(sim.force_stamp).all()
+        assert _until(executor, lambda: sim.world.forces[0, 0] == 0.5)
+        assert sim.world.forces[1].tolist() == [0.0, -2.0]       # the malformed ones were dropped
+        assert np.isfinite(sim.pacer.stamp).all()
 
 
 def _seconds(msg) -> float:
@@ -251,8 +252,8 @@ def test_the_world_publishes_each_robots_proximity_scan(tmp_path):
 
         kill = probe.create_publisher(Int32MultiArray, '/swarm/kill', 10)
         kill.publish(Int32MultiArray(data=[1]))
-        assert _until(executor, lambda: not sim.alive[1])
-        killed_at = sim.t
+        assert _until(executor, lambda: not sim.world.alive[1])
+        killed_at = sim.world.t
 
         def after(i):
             return [m for m in scans[i] if _seconds(m) > killed_at + 1e-6]
@@ -295,8 +296,8 @@ def test_a_bad_proximity_setting_is_refused_with_its_name(tmp_path, name, value)
 
 def test_a_proximity_rate_of_zero_turns_the_sensor_off(tmp_path):
     with _world(tmp_path, THREE, proximity_rate_hz=0.0) as (executor, sim, probe):
-        assert sim.proximity is None and not sim.proximity_pubs
-        assert _until(executor, lambda: sim.t > 0.5)
+        assert sim.world.proximity is None and not any(k == 'proximity' for k, _ in sim.pubs)
+        assert _until(executor, lambda: sim.world.t > 0.5)
         topics = {name for name, _ in probe.get_topic_names_and_types()}
         assert not any(t.endswith('/proximity') for t in topics), topics
 
@@ -320,6 +321,6 @@ def test_one_tx_callback_takes_every_queued_radio_batch(tmp_path):
         for k in range(30):
             tx.publish(frames_to_msg([(0.0, Packet(source=1, destination=BROADCAST, kind=0,
                                                    sequence=k, ttl=1, payload=b'x'))]))
-        assert _until(executor, lambda: sim.medium.stats.sent >= 30)
-        assert sim.medium.stats.sent == 30
+        assert _until(executor, lambda: sim.world.medium.stats.sent >= 30)
+        assert sim.world.medium.stats.sent == 30
         assert len(calls) < 30          # taken in fewer callbacks than messages

@@ -1,17 +1,20 @@
-"""Headless evaluation: N agent brains, the radio medium and point-mass dynamics in one process.
+"""Headless evaluation: N agent brains and the world model in one process.
 
 This is the Monte Carlo workhorse of thesis chapter 4. It runs exactly the code of the
-ROS system (``AgentBrain`` built by ``make_brain``, ``RadioMedium``, ``Mission`` with the
-same partitioners, the same sensor noise models) but replaces pybullet and DDS with a
-vectorised point-mass model (``swarm_agent.dynamics``) and direct calls, so a 50-agent
-trial takes seconds.
+ROS system (``AgentBrain`` built by ``make_brain``, ``Mission`` with the same
+partitioners, and the very world model sim_node runs, ``swarm_sim.world_model.World``:
+sensors, radio medium, faults, settled condition, truth record) but with the point-mass
+backend (``swarm_sim.physics.PointMassBackend``) and direct calls instead of pybullet
+and DDS, so a 50-agent trial takes seconds.
 
-One control step (``control_dt``, 50 Hz by default) does, in order: every living brain
-steps (inner LQR loop; outer loop at 2 Hz; localization every 3 s) and hands its packets
-to the medium; the dynamics integrate the forces; the medium delivers due packets; the
-IMU, range, GPS and proximity models feed the brains; the settled condition (eq. 4.1)
-and the closest approach of the robots' coverage circles are checked
-(``swarm_sim.metrics.SettleTracker``, ``SeparationTracker``).
+One control step (``control_dt``, 50 Hz by default, also the physics step) does, in
+order: the scheduled shape changes, removals and fault events due; every living brain
+steps (inner LQR loop; outer loop at 2 Hz; localization every 3 s) and hands its
+packets to the medium; the world steps and reports, stamped with the control instant:
+the brains get the radio deliveries, IMU, ranges, proximity scans and GPS fixes due.
+At every truth sample (``record_period_s``) the mission hears which agents are alive
+over its radio, the beliefs are recorded beside the truth, and the run ends once the
+settled condition (eq. 4.1) has held for ``settle_hold_s`` with nothing scheduled.
 """
 
 from __future__ import annotations
@@ -24,22 +27,16 @@ import numpy as np
 
 from swarm_agent.agent_factory import make_brain
 from swarm_agent.brain import AgentBrain
-from swarm_agent.dynamics import PointMassSwarm
 from swarm_agent.mission_radio import MeshListener
 from swarm_mission.mission import Mission, MissionConfig, SequenceStep
 from swarm_mission.robot_types import load_robot_types
 from swarm_mission.shapes import Shape
 from swarm_sim.fleet import place_fleet, PLACEMENT_STD_M, random_fleet, RobotSpec
 from swarm_sim.medium import MediumConfig, RadioMedium
-from swarm_sim.metrics import (
-    SeparationTracker,
-    SETTLE_HOLD_S,
-    settled_now,
-    SettleTracker,
-    trial_metrics,
-)
+from swarm_sim.metrics import SETTLE_HOLD_S, trial_metrics
 from swarm_sim.mission_mesh import MediumWithMission
-from swarm_sim.sensors import GpsModel, ImuModel, ProximityModel
+from swarm_sim.physics import PointMassBackend
+from swarm_sim.world_model import Readings, World, WorldConfig
 
 METHODS = ('bubble', 'fractal', 'forces')
 MISSION_RADIO_STREAM = 0x4D52   # seeds the mission radio's losses apart from the rest
@@ -60,7 +57,7 @@ class Scenario:
     seed: int = 0
     duration_s: float = 600.0
     control_dt: float = 0.02              # inner loop period (50 Hz)
-    medium_update_s: float = 0.1          # how often links are recomputed
+    medium_update_s: float = 0.1          # how often links are recomputed (as sim_node)
     imu_period_s: float = 0.1             # IMU sample period (mean acceleration over it):
     #                                       sim_node's imu_rate_hz (10 Hz)
     range_period_s: float = 1.0           # TOA ranging rate
@@ -144,8 +141,8 @@ class HeadlessSwarm:
         placed = place_fleet(fleet, scenario.placement_std_m, scenario.seed,
                              radii=[self.types[r.type].coverage_radius for r in fleet],
                              obstacles=obstacles, half_size=scenario.half_size)
-        start = np.array([[r.x, r.y] for r in placed], dtype=float)
-        self.dynamics = PointMassSwarm([self.types[r.type] for r in fleet], start)
+        backend = PointMassBackend(placed, self.types)
+        self.dynamics = backend.model
         # The mission computer is a node of the mesh: it learns which agents are alive
         # from the route adverts its radio hears (swarm_agent.mission_radio).
         try:
@@ -157,10 +154,16 @@ class HeadlessSwarm:
             scenario.mission_position if scenario.mission_position is not None
             else scenario.shape.region.centroid.coords[0],
             np.random.default_rng([MISSION_RADIO_STREAM, scenario.seed]), obstacles)
-        self.imu = ImuModel(self.n, self.rng)
-        self.gps = GpsModel(self.rng)
-        self.proximity = ProximityModel(self.rng)
-        self.radii = np.array([self.types[r.type].coverage_radius for r in fleet])
+        dt = scenario.control_dt
+        self.world = World(placed, self.types, backend, WorldConfig(
+            physics_dt=dt, link_period_s=scenario.medium_update_s, radio_period_s=0.0,
+            imu_period_s=scenario.imu_period_s, range_period_s=scenario.range_period_s,
+            gps_period_s=scenario.gps_period_s,
+            proximity_period_s=scenario.proximity_period_s,
+            record_period_s=scenario.record_period_s, half_size=scenario.half_size,
+            settle_hold_s=scenario.settle_hold_s), self.rng, obstacles, self.medium)
+        self.alive = self.world.alive
+        self.radii = self.world.radii
         self.brains: list[AgentBrain | None] = [
             make_brain(agent_id=r.id, agent_type=r.type, is_beacon=r.is_beacon,
                        method=scenario.method, initial_position=(r.x, r.y),
@@ -168,7 +171,6 @@ class HeadlessSwarm:
                        localization_period_s=scenario.localization_period_s,
                        initial_position_std=scenario.placement_std_m)
             for r in fleet]
-        self.alive = np.ones(self.n, dtype=bool)
         self.mission = Mission(
             MissionConfig(method=scenario.method,
                           seed=scenario.seed if scenario.partition_seed is None
@@ -194,49 +196,32 @@ class HeadlessSwarm:
     def _remove(self, t: float, agent_ids: Sequence[int]) -> None:
         for agent in agent_ids:
             i = self.index.get(agent)
-            if i is None or not self.alive[i]:
-                continue
-            self.alive[i] = False
-            self.brains[i] = None
-            self.medium.remove(agent)
-            self.mission.events.append(f't={t:.1f} s: agent {agent} removed')
+            if i is not None and self.world.remove(i):
+                self.brains[i] = None
+                self.mission.events.append(f't={t:.1f} s: agent {agent} removed')
 
     # ------------------------------------------------------------------ run
     def run(self, progress: Callable[[float, float], None] | None = None) -> TrialRecord:
         """Run until the settled condition has held for ``settle_hold_s`` after the last
         change with nothing scheduled, or for the duration (then not settled)."""
-        sc = self.scenario
+        sc, world = self.scenario, self.world
         wall0 = wallclock.perf_counter()
-        dt = sc.control_dt
         self._apply_shape(0.0, sc.shape)
-        pending_shapes = sorted(sc.sequence, key=lambda s: s.time)
-        pending_removals = sorted(sc.removals, key=lambda r: r[0])
-        pending_events = sorted(sc.events, key=lambda e: e[0])
-        steps = int(round(sc.duration_s / dt))
-        every = {name: max(1, int(round(period / dt))) for name, period in (
-            ('medium', sc.medium_update_s), ('range', sc.range_period_s),
-            ('imu', sc.imu_period_s), ('proximity', sc.proximity_period_s or dt),
-            ('gps', sc.gps_period_s), ('record', sc.record_period_s))}
+        # Shapes, removals, then fault events: among equal times, in that order.
+        for step in sorted(sc.sequence, key=lambda s: s.time):
+            world.schedule(step.time, lambda t, shape=step.shape: self._apply_shape(t, shape))
+        for t_remove, agents in sorted(sc.removals, key=lambda r: r[0]):
+            world.schedule(t_remove, lambda t, agents=agents: self._remove(t, agents))
+        for t_event, event in sorted(sc.events, key=lambda e: e[0]):
+            world.schedule(t_event, lambda t, event=event: event(self, t))
         rec: dict[str, list] = {k: [] for k in (
             'times', 'positions', 'velocities', 'estimates', 'modes', 'alive', 'goal_ids',
             'digests', 'localized', 'min_separation')}
-        beacon_ids = [self.ids[i] for i in np.flatnonzero(self.is_beacon)]
         forces = np.zeros((self.n, 2))
-        settle = SettleTracker(sc.settle_hold_s)
-        separation = SeparationTracker()
-        self.medium.update_positions(self.ids, self.dynamics.positions)
-        imu_v = self.dynamics.velocities.copy()
-        for k in range(steps + 1):
-            t = k * dt
-            while pending_shapes and pending_shapes[0].time <= t:
-                self._apply_shape(t, pending_shapes.pop(0).shape)
-                settle.change(t)
-            while pending_removals and pending_removals[0][0] <= t:
-                self._remove(t, pending_removals.pop(0)[1])
-                settle.change(t)
-            while pending_events and pending_events[0][0] <= t:
-                pending_events.pop(0)[1](self, t)
-                settle.change(t)
+        world.refresh_links()   # settings applied before the run (a loss) hold from t = 0
+        for _ in range(int(round(sc.duration_s / sc.control_dt)) + 1):
+            t = world.t
+            world.run_due(t)
             # Brains: control step and packets out.
             for i, brain in enumerate(self.brains):
                 if brain is None:
@@ -246,86 +231,79 @@ class HeadlessSwarm:
                 forces[i] = out.force
                 for packet in out.packets:
                     self.medium.transmit(t, packet)
-            # Physics, and the metrics that need every step.
-            self.dynamics.step(dt, np.where(self.alive[:, None], forces, 0.0))
-            separation.update(self.dynamics.positions, self.radii, self.alive)
-            settle.update(t, settled_now(self.mission.shape, self.dynamics.positions,
-                                         self.dynamics.velocities, self.alive))
-            if k % every['medium'] == 0:
-                living = np.flatnonzero(self.alive)
-                self.medium.update_positions([self.ids[i] for i in living],
-                                             self.dynamics.positions[living])
-            brains, index = self.brains, self.index
-            for packet, receivers in self.medium.deliver_grouped(t):
-                for receiver in receivers:   # 10^4 frames a sim-second: kept lean
-                    brain = brains[index[receiver]]
-                    if brain is not None:
-                        brain.on_packet(t, packet)
-            # Sensors.
-            if k % every['imu'] == 0:
-                # Mean acceleration over the IMU interval, as sim_node measures it.
-                vel = self.dynamics.velocities
-                accel = self.imu.measure((vel - imu_v) / (every['imu'] * dt))
-                imu_v = vel.copy()
-                for i, brain in enumerate(self.brains):
-                    if brain is not None:
-                        brain.on_imu(t, accel[i])
-            if k % every['range'] == 0:
-                for i, brain in enumerate(self.brains):
-                    if brain is not None:
-                        brain.on_ranges(t, self.medium.toa_ranges(self.ids[i], beacon_ids))
-            if sc.proximity_period_s > 0 and k % every['proximity'] == 0:
-                scan = self.proximity.measure(self.dynamics.positions, self.radii, self.alive)
-                for i, brain in enumerate(self.brains):
-                    if brain is not None:
-                        brain.on_proximity(t, *scan.of(i))
-            if k % every['gps'] == 0:
-                for i, brain in enumerate(self.brains):
-                    if brain is not None and self.is_beacon[i]:
-                        fix, std = self.gps.measure(self.dynamics.positions[i])
-                        brain.on_gps(t, fix, std)
-            # Liveness for self-repair, over the radio: the agents the mission's radio
-            # holds a route to. A removed agent's neighbours time it out and advertise
-            # the broken route; the mission stops hearing of it.
-            if k % every['record'] == 0:
-                for agent in self.mission_radio.alive():
-                    self.mission.agent_seen(agent, t)
-                version = self.mission.goal_version
-                self.mission.check_liveness(t)
-                if self.mission.goal_version != version:
-                    self._broadcast_mission()
-                    settle.change(t)
-                self._record(t, rec)
-                rec['min_separation'].append(separation.take_interval_min())
+            world.command(forces)
+            world.step()
+            world.shape = self.mission.shape
+            readings = world.sense(t)
+            self._feed(readings)
+            if readings.truth is not None:
+                self._sample(readings, rec)
                 if progress is not None:
                     progress(t, sc.duration_s)
                 # Never stop before a scheduled shape change, removal or fault, nor
                 # before the observation time.
-                if settle.held(t) and t >= sc.min_duration_s and not (
-                        pending_shapes or pending_removals or pending_events):
+                if (world.settle.held(t) and t >= sc.min_duration_s
+                        and not world.pending):
                     break
-        return self._finish(rec, wallclock.perf_counter() - wall0, settle, separation)
+        return self._finish(rec, wallclock.perf_counter() - wall0)
 
-    def _record(self, t: float, rec: dict[str, list]) -> None:
+    def _feed(self, readings: Readings) -> None:
+        """The world's readings to the living brains: radio, IMU, ranges, proximity, GPS."""
+        brains, index = self.brains, self.index
+        for t, packet, receivers in readings.rx or ():
+            for receiver in receivers:   # 10^4 frames a sim-second: kept lean
+                brain = brains[index[receiver]]
+                if brain is not None:
+                    brain.on_packet(t, packet)
+        t = readings.t
+        if readings.imu is not None:
+            for i in readings.living:
+                brains[i].on_imu(t, readings.imu[i])
+        for i, ranges in readings.ranges or ():
+            brains[i].on_ranges(t, ranges)
+        if readings.proximity is not None:
+            for i in readings.living:
+                brains[i].on_proximity(t, *readings.proximity.of(i))
+        for i, fix, std in readings.gps or ():
+            brains[i].on_gps(t, fix, std)
+
+    def _sample(self, readings: Readings, rec: dict[str, list]) -> None:
+        """A truth sample: liveness for self-repair over the radio, then the record.
+
+        The mission learns which agents are alive from the routes its radio holds: a
+        removed agent's neighbours time it out and advertise the broken route.
+        """
+        t = readings.t
+        for agent in self.mission_radio.alive():
+            self.mission.agent_seen(agent, t)
+        version = self.mission.goal_version
+        self.mission.check_liveness(t)
+        if self.mission.goal_version != version:
+            self._broadcast_mission()
+            self.world.changed(t)
+        self._record(readings, rec)
+
+    def _record(self, readings: Readings, rec: dict[str, list]) -> None:
+        truth = readings.truth
         snaps = [b.snapshot() if b is not None else None for b in self.brains]
-        rec['times'].append(t)
-        rec['positions'].append(self.dynamics.positions.copy())
-        rec['velocities'].append(self.dynamics.velocities.copy())
+        rec['times'].append(truth.t)
+        rec['positions'].append(truth.positions)
+        rec['velocities'].append(truth.velocities)
         rec['estimates'].append(np.array([s.position if s else [np.nan, np.nan]
                                           for s in snaps]))
         rec['modes'].append(np.array([s.mode if s else -1 for s in snaps]))
-        rec['alive'].append(self.alive.copy())
+        rec['alive'].append(truth.alive)
         rec['goal_ids'].append(np.array([s.goal_id if s else -1 for s in snaps]))
         rec['digests'].append(np.array([s.assignment_digest if s else 0 for s in snaps]))
         rec['localized'].append(np.array([bool(s and s.localized) for s in snaps]))
+        rec['min_separation'].append(truth.min_separation)
 
-    def _finish(self, rec: dict[str, list], wall_s: float, settle: SettleTracker,
-                separation: SeparationTracker) -> TrialRecord:
+    def _finish(self, rec: dict[str, list], wall_s: float) -> TrialRecord:
         arrays = {k: np.asarray(v) for k, v in rec.items()}
         radii = {t: r.coverage_radius for t, r in self.types.items()}
         metrics = trial_metrics(arrays, self.robot_types, self.is_beacon, self.mission.shape,
-                                radii, settling=settle.result(),
-                                separation=separation.result(), shapes=self.shapes)
+                                radii, settling=self.world.settle.result(),
+                                separation=self.world.separation.result(), shapes=self.shapes)
         metrics['outcome'] = 'settled' if metrics['settled'] else 'not settled'
         metrics['wall_seconds'] = wall_s
         metrics['real_time_factor'] = float(arrays['times'][-1] / max(wall_s, 1e-9))

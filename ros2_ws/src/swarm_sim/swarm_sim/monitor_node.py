@@ -21,8 +21,8 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
-from swarm_agent.agent_node import lean_subscription
 from swarm_agent.conversions import stamp_seconds
+from swarm_agent.lean_endpoints import lean_subscription
 from swarm_mission import qos
 from swarm_mission.conversions import goals_from_msg, shape_from_msg
 from swarm_mission.shapes import ShapeError

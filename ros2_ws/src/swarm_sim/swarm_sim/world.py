@@ -1,7 +1,7 @@
 """The pybullet world of the swarm: the thesis's Gazebo environment of section 4.1.
 
 What the thesis built in Gazebo/ODE (4.1, Figs. 4.1-4.2, Table 4.1) and how it is built
-here, behind the same interface as sim_node's ``PointMassBackend``:
+here, behind ``swarm_sim.physics.PhysicsBackend`` (as the point-mass model is):
 
 Terrain
     A +/-``half_size`` square (50 m in 4.1) of rough ground: a pybullet
@@ -70,9 +70,9 @@ Performance
 Bad input
     Robots of unknown types, outside the workspace, inside (or overlapping) obstacles
     or overlapping each other raise ``WorldError`` (a ``ValueError``) at construction,
-    naming the robot and the fix. Non-finite forces are replaced by zero and forces
-    above ``max_force`` are scaled down to it; both are counted (``rejected_forces``,
-    ``clipped_forces``) and the simulation runs on.
+    naming the robot and the fix (``swarm_sim.physics.check_world``). Non-finite forces
+    are replaced by zero and forces above ``max_force`` are scaled down to it; both are
+    counted (``rejected_forces``, ``clipped_forces``) and the simulation runs on.
 
 DIRECT mode (no window) by default; ``gui=True`` opens pybullet's viewer.
 """
@@ -86,17 +86,11 @@ import time
 import numpy as np
 import pybullet as pb
 import shapely
-from shapely.geometry import Point, Polygon
+from shapely.geometry import Polygon
 from shapely.geometry.polygon import orient
 
-from swarm_mission.robot_types import (
-    GRAVITY,
-    OTHER_COLOUR,
-    robot_type,
-    RobotType,
-    RobotTypeError,
-    TYPE_COLOURS,
-)
+from swarm_mission.robot_types import GRAVITY, OTHER_COLOUR, RobotType, TYPE_COLOURS
+from swarm_sim.physics import check_world, WorldError
 from swarm_sim.terrain import (
     DEFAULT_CELL,
     DEFAULT_FEATURE,
@@ -107,10 +101,6 @@ from swarm_sim.terrain import (
 
 DEFAULT_PHYSICS_HZ = 100.0
 SPHERE_FRACTION = 0.2          # contact sphere radius / coverage radius
-
-
-class WorldError(ValueError):
-    """A world that cannot be built: bad terrain, obstacles or robot placement."""
 
 
 def robot_geometry(rtype: RobotType) -> tuple[float, float]:
@@ -151,10 +141,10 @@ class PybulletBackend:
         self.physics_hz = float(physics_hz)
         self.max_force = float(max_force)
         self.terrain_kind = str(terrain)
-        self._check_parameters()
-        self.robot_types = self._check_fleet(types)
-        self.obstacles = self._check_obstacles(obstacles)
-        self._check_spawns()
+        # Validation before any pybullet call, so a bad input leaks nothing.
+        self.robot_types, self.obstacles = check_world(
+            self.fleet, types, obstacles, self.half_size, self.physics_hz, self.max_force,
+            self.terrain_kind)
         self.n = len(self.fleet)
         self.heightmap: HeightMap | None = None
         if self.terrain_kind == 'rough':
@@ -179,72 +169,6 @@ class PybulletBackend:
         except Exception:
             self.close()
             raise
-
-    # -- validation (before any pybullet call, so a bad input leaks nothing)
-    def _check_parameters(self) -> None:
-        if not (math.isfinite(self.half_size) and self.half_size > 0):
-            raise WorldError(f'half_size must be a positive number of metres, '
-                             f'got {self.half_size!r}')
-        if not (math.isfinite(self.physics_hz) and 10.0 <= self.physics_hz <= 10000.0):
-            raise WorldError(f'physics_hz must be within 10..10000 Hz, got {self.physics_hz!r}')
-        if not (math.isfinite(self.max_force) and self.max_force > 0):
-            raise WorldError(f'max_force must be positive, got {self.max_force!r}')
-        if self.terrain_kind not in ('rough', 'flat'):
-            raise WorldError(f'unknown terrain {self.terrain_kind!r}; use rough or flat')
-
-    def _check_fleet(self, types: dict[int, RobotType]) -> list[RobotType]:
-        if not self.fleet:
-            raise WorldError('the fleet is empty; give at least one robot')
-        out = []
-        for r in self.fleet:
-            try:
-                out.append(robot_type(types, r.type))
-            except RobotTypeError as exc:
-                raise WorldError(f'robot {r.id}: {exc}') from None
-            if not (math.isfinite(r.x) and math.isfinite(r.y) and math.isfinite(r.yaw)):
-                raise WorldError(f'robot {r.id}: spawn pose ({r.x}, {r.y}, {r.yaw}) is not '
-                                 'finite')
-        return out
-
-    def _check_obstacles(self, obstacles: Sequence[Polygon]) -> list[Polygon]:
-        out = []
-        for k, o in enumerate(obstacles):
-            if not isinstance(o, Polygon) or o.is_empty or not o.is_valid:
-                raise WorldError(f'obstacle {k} must be a valid, non-empty shapely Polygon, '
-                                 f'got {type(o).__name__}')
-            out.append(o)
-        return out
-
-    def _check_spawns(self) -> None:
-        lim = self.half_size
-        xy = np.array([[r.x, r.y] for r in self.fleet])
-        rc = np.array([t.coverage_radius for t in self.robot_types])
-        for r, t in zip(self.fleet, self.robot_types):
-            room = lim - t.coverage_radius
-            if abs(r.x) > room or abs(r.y) > room:
-                raise WorldError(
-                    f'robot {r.id} (type {t.type_id}) at ({r.x:.2f}, {r.y:.2f}) is outside the '
-                    f'workspace: its coverage circle of {t.coverage_radius} m must lie within '
-                    f'+/-{lim} m, so |x|, |y| <= {room:.2f} m')
-        if self.obstacles:
-            blocked = shapely.union_all(self.obstacles)
-            for r, t in zip(self.fleet, self.robot_types):
-                gap = blocked.distance(Point(r.x, r.y))
-                if gap < t.coverage_radius:
-                    where = 'inside' if gap == 0 else 'overlapping'
-                    raise WorldError(
-                        f'robot {r.id} (type {t.type_id}) at ({r.x:.2f}, {r.y:.2f}) is {where} '
-                        f'an obstacle: move it at least {t.coverage_radius - gap:.2f} m away')
-        if len(xy) > 1:
-            d = np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=2)
-            overlap = d < rc[:, None] + rc[None, :]
-            np.fill_diagonal(overlap, False)
-            if overlap.any():
-                i, j = np.argwhere(overlap)[0]
-                a, b = self.fleet[i], self.fleet[j]
-                raise WorldError(
-                    f'robots {a.id} and {b.id} overlap: their centres are {d[i, j]:.2f} m apart, '
-                    f'less than the sum of their coverage radii {rc[i] + rc[j]:.2f} m')
 
     # -- construction
     def _build(self, wall_height: float, obstacle_height: float, angular_damping: float,
