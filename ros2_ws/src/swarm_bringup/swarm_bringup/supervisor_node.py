@@ -126,8 +126,8 @@ class RouteRecorder:
     def __init__(self, node, ids: list[int]) -> None:
         from rclpy.qos import QoSProfile
 
-        from swarm_agent.agent_node import lean_subscription
         from swarm_agent.conversions import stamp_seconds
+        from swarm_agent.lean_endpoints import lean_subscription
         from swarm_mission import qos
         from swarm_msgs.msg import RouteTable
 
