@@ -307,8 +307,7 @@ class HeadlessSwarm:
         metrics['outcome'] = 'settled' if metrics['settled'] else 'not settled'
         metrics['wall_seconds'] = wall_s
         metrics['real_time_factor'] = float(arrays['times'][-1] / max(wall_s, 1e-9))
-        metrics['medium'] = dict(vars(self.medium.stats)) if hasattr(
-            self.medium.stats, '__dict__') else dict(self.medium.stats)
+        metrics['medium'] = dict(vars(self.medium.stats))
         if self.mission.last_result is not None:
             metrics['goal_epsilon_t'] = float(self.mission.last_result.epsilon_t)
             metrics['goal_epsilon_g'] = float(self.mission.last_result.epsilon_g)
