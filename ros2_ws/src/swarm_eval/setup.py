@@ -32,6 +32,7 @@ setup(
             'sim_benchmark = swarm_eval.sim_benchmark:main',
             'bench_dsdv = swarm_eval.bench.dsdv:main',
             'benchmarks = swarm_eval.bench.suite:main',
+            'measure = swarm_eval.measured:main',
         ],
     },
 )
