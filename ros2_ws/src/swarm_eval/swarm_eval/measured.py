@@ -40,7 +40,6 @@ import time
 from swarm_eval.paths import repo_root
 
 RECORD = 'measure.json'
-LOG = 'measure.log'
 NOT_MEASURED = 'not measured'
 ENV = ('scripts/env.sh', 'python')
 
@@ -397,7 +396,7 @@ ROWS: tuple[Row, ...] = (
         'seconds once the toolchain is built'),
     Row('mesh', 'Mesh quality, 50 agents 20:20:10, partitions only',
         (_cmd('mesh', 'scripts/mesh_study.py', '--seeds 20', ('mesh_study.json',),
-              mesh_result),), 'about 20 min'),
+              mesh_result),), 'about 1 min'),
     Row('crlb', 'Trilateration vs Cramer-Rao',
         (_pytest('crlb', 'tests/unit/agent/test_localization.py::'
                  'test_monte_carlo_error_reaches_the_crlb -q -s', crlb_result),), 'seconds'),
@@ -434,11 +433,13 @@ def run_one(run: Run, out: pathlib.Path, extra: Sequence[str] = ()) -> int:
     """Run one command into ``out/<run.name>``; leave its record and its output there."""
     path = out / run.name
     path.mkdir(parents=True, exist_ok=True)
-    argv = command(run.argv, path.resolve()) + list(extra)
+    where = path.resolve()      # the command runs in the repository: relative to it there
+    where = where.relative_to(repo_root()) if where.is_relative_to(repo_root()) else where
+    argv = command(run.argv, where) + list(extra)
     print(f'measure: {run.name}: {shlex.join(argv)}', flush=True)
     started = datetime.datetime.now(datetime.UTC)
     t0 = time.monotonic()
-    with open(path / (run.stdout or LOG), 'wb') as log:
+    with open(path / (run.stdout or 'measure.log'), 'wb') as log:
         proc = subprocess.Popen(argv, cwd=repo_root(), stdout=subprocess.PIPE,
                                 stderr=subprocess.STDOUT)
         for chunk in iter(lambda: proc.stdout.read1(4096), b''):
