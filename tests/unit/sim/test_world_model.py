@@ -110,7 +110,7 @@ def test_sensor_periods_are_counted_in_physics_steps():
     assert world.t == pytest.approx(2.0)
 
 
-def test_a_late_report_does_not_shift_the_next_sample():
+def test_a_late_report_samples_what_is_due_and_the_next_a_period_later():
     """Reports every 7 steps: the IMU (period 10 steps) is sampled at the first report at
     or after each due step, and the next one is due a period after that report."""
     world = _world()

@@ -10,8 +10,8 @@
   positions every ``link_period_s`` (0.1 s; a sweeping wall moved first), the frames
   delivered up to each report, handed out in batches every ``radio_period_s``;
 - the sensors of 4.2 at their periods (``swarm_sim.sensors``): the IMU's mean
-  acceleration over its sample period, TOA ranges of every living robot to its beacon
-  neighbours (beacons too), the beacons' GPS, the proximity scans;
+  acceleration over its sample period, TOA ranges of every living robot to its living
+  beacon neighbours (beacons too), the beacons' GPS, the proximity scans;
 - faults: a robot removed (radio and body), its radio off and on, an obstacle moved
   (body and radio shadow), the run-time medium settings of ``RUNTIME_SETTINGS``; and
   scheduled events, each a commanded change for the settled condition;
@@ -24,10 +24,11 @@
 One cycle is ``step()`` (one physics step of ``physics_dt``; the link refresh) as often
 as the caller's pacing allows, then ``sense(t)``: the ``Readings`` due since the last
 report, stamped ``t`` (the frames due by then, the sensors whose period has passed). A
-period is a whole number of physics steps, counted in steps, so a report that comes
-late does not shift the next one. sim_node stamps a report with the world's time and
-converts it to messages; the headless evaluator reports after every step, stamped with
-the instant its brains acted (the start of the step), and calls the brains.
+period is a whole number of physics steps: a sensor due is sampled at the first report
+at or after its due step, and is next due a period after that. sim_node stamps a report
+with the world's time and converts it to messages; the headless evaluator reports after
+every step, stamped with the instant its brains acted (the start of the step), and
+calls the brains.
 
 The random draws of a seed come in a fixed order from one generator: the IMU biases at
 construction, then per report the medium's losses (at transmission), the IMU noise, the
