@@ -29,7 +29,7 @@ def test_a_robot_without_camera_poses_is_lost_with_growing_uncertainty():
         Parameter('agent_id', value=3), Parameter('agent_type', value=1),
         Parameter('external_pose', value=True), Parameter('initial_x', value=0.5),
         Parameter('initial_y', value=0.5), Parameter('pose_timeout', value=0.5),
-        Parameter('setpoint_v_max', value=0.035)])
+        Parameter('setpoint.v_max', value=0.035)])
     probe = rclpy.create_node('probe', context=context)
     executor.add_node(agent)
     executor.add_node(probe)

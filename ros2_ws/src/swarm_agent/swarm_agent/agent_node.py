@@ -29,23 +29,27 @@ central server); the mission node then only announces shapes.
 from __future__ import annotations
 
 from collections.abc import Callable
+import copy
 import math
 import os
 import sys
 
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist, WrenchStamped
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor
-import rclpy
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.time import Time
 from sensor_msgs.msg import Imu
 
 from swarm_agent.agent_factory import make_brain, type_counts_from
-from swarm_agent.brain import BrainConfigError
+from swarm_agent.brain import BrainConfig, BrainConfigError
 from swarm_agent.conversions import (
     frames_or_log,
     frames_to_msg,
@@ -55,9 +59,12 @@ from swarm_agent.conversions import (
     snapshot_to_state,
     stamp_seconds,
 )
+from swarm_agent.lean_endpoints import lean_publisher, lean_subscription
 from swarm_agent.packet import Packet
+from swarm_agent.parameters import ParameterError, ParamSpec, set_live, spec_table
 from swarm_mission import qos
 from swarm_mission.conversions import goals_from_msg, shape_from_msg
+from swarm_mission.node_runner import run_node
 from swarm_mission.partition import partition, PartitionError
 from swarm_mission.shapes import ShapeError
 from swarm_msgs.msg import (
@@ -83,8 +90,6 @@ PARAMETERS = {
     'control_rate_hz': (50.0, 'Rate of the LQR inner loop and of cmd_force'),
     'keepalive_hz': (10.0, 'Rate at which an unchanged cmd_force is repeated'),
     'radio_tx_hz': (20.0, 'Rate at which the frames sent since the last batch go out'),
-    'outer_period_s': (0.5, 'Period of the outer loop (setpoint, forces), thesis 2 Hz'),
-    'consensus_period_s': (2.0, 'Period of cost reports and Hungarian assignment rounds'),
     'localization_period_s': (3.0, 'Period of trilateration updates (thesis 4.2: 3 s)'),
     'state_rate_hz': (2.0, 'Rate of the state introspection topic'),
     'routes_rate_hz': (0.5, 'Rate of the routes topic (DSDV table: about N entries)'),
@@ -100,37 +105,53 @@ PARAMETERS = {
 }
 
 
+# The brain's tunables, generated from its configuration dataclasses (one source of
+# truth, swarm_agent.parameters): ``hold_radius``, ``localization.gate``, ...
+BRAIN_PARAMETERS = spec_table(BrainConfig)
+
+
+def brain_descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    """The ROS descriptor of a generated parameter: description, range, read-only."""
+    descriptor = ParameterDescriptor(description=spec.description, read_only=not spec.live)
+    if isinstance(spec.default, bool):
+        return descriptor
+    if isinstance(spec.default, int) and spec.low is not None and spec.high is not None:
+        descriptor.integer_range = [IntegerRange(from_value=int(spec.low),
+                                                 to_value=int(spec.high), step=1)]
+    elif isinstance(spec.default, float) and spec.low is not None and spec.high is not None:
+        descriptor.floating_point_range = [FloatingPointRange(
+            from_value=float(spec.low), to_value=float(spec.high), step=0.0)]
+    return descriptor
+
+
+def declare_brain_parameters(node: Node) -> dict:
+    """Declare every generated brain parameter on ``node``; their values by name."""
+    for name, spec in BRAIN_PARAMETERS.items():
+        node.declare_parameter(name, spec.default, brain_descriptor(spec))
+    return {name: node.get_parameter(name).value for name in BRAIN_PARAMETERS}
+
+
+def set_brain_parameters(brains, params) -> SetParametersResult:
+    """Apply run-time changes of generated parameters to running brains (an on-set
+    parameters callback): all or nothing, with the reason of a refusal."""
+    changes = [(p.name, p.value) for p in params if p.name in BRAIN_PARAMETERS]
+    try:
+        for name, value in changes:   # check every change on a copy first
+            for brain in brains:
+                set_live(copy.deepcopy(brain.config), name, value)
+        for name, value in changes:
+            for brain in brains:
+                set_live(brain.config, name, value)
+    except ParameterError as exc:
+        return SetParametersResult(successful=False, reason=str(exc))
+    return SetParametersResult(successful=True)
+
+
 RATES_HZ = ('control_rate_hz', 'keepalive_hz', 'radio_tx_hz', 'state_rate_hz',
             'routes_rate_hz')
 
 
 Frames = list[tuple[float, Packet]]  # (transmission time in seconds, frame)
-
-
-def lean_publisher(node, msg_type, topic: str, qos_profile, **kwargs):
-    """``node.create_publisher`` without rclpy's default QoS event handlers.
-
-    rclpy gives every publisher and subscription default event handlers (incompatible
-    QoS, incompatible type) that only log a warning; each is a Python waitable the
-    executor adds to its wait set and polls after every wait. The per-robot topics of a
-    swarm make hundreds of them (about 550 in a composed process of 50 agents, 250 in
-    the simulator): profiled with py-spy on the 50-agent composed scenario, both
-    executors spent 60-77 % of their time on wait sets and under 10 % in callbacks.
-    What is given up: the warning when a peer's QoS or type does not match; every swarm
-    topic takes its profile from ``swarm_mission.qos``, so peers agree by construction.
-    Shared by the nodes of every package (sim_node, monitor_node, launch_swarm).
-    """
-    return node.create_publisher(
-        msg_type, topic, qos_profile,
-        event_callbacks=PublisherEventCallbacks(use_default_callbacks=False), **kwargs)
-
-
-def lean_subscription(node, msg_type, topic: str, callback, qos_profile, **kwargs):
-    """``node.create_subscription`` without the default QoS event handlers (see
-    ``lean_publisher``)."""
-    return node.create_subscription(
-        msg_type, topic, callback, qos_profile,
-        event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False), **kwargs)
 
 
 class RadioBatcher:
@@ -185,9 +206,12 @@ class AgentNode(Node):
         stamp s, fx, fy)`` takes the force commands instead of the cmd_force topic
         (composed_node: one ForceBatch per step)."""
         super().__init__(node_name, namespace=namespace, **kwargs)
+        # The node's own parameters are read once, at start: read-only.
         for name, (default, text) in PARAMETERS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=text))
+            self.declare_parameter(name, default,
+                                   ParameterDescriptor(description=text, read_only=True))
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        settings = declare_brain_parameters(self)
         for rate in RATES_HZ:
             if not p[rate] > 0.0:
                 raise BrainConfigError(
@@ -202,11 +226,12 @@ class AgentNode(Node):
         self.brain = make_brain(
             agent_id=p['agent_id'], agent_type=p['agent_type'], is_beacon=p['is_beacon'],
             method=p['method'], initial_position=(p['initial_x'], p['initial_y']),
-            seed=p['seed'], outer_period_s=p['outer_period_s'],
-            consensus_period_s=p['consensus_period_s'],
-            localization_period_s=p['localization_period_s'],
+            seed=p['seed'], localization_period_s=p['localization_period_s'],
             robot_types_file=p['robot_types_file'] or None,
-            external_pose=p['external_pose'], initial_position_std=p['placement_std_m'])
+            external_pose=p['external_pose'], initial_position_std=p['placement_std_m'],
+            settings=settings)
+        self.add_on_set_parameters_callback(
+            lambda params: set_brain_parameters([self.brain], params))
         self._type_counts = p['type_counts']
         self._last_setpoint: tuple[float, float] | None = None
         self._radio_lag_max = 0.0  # s: worst delay from the medium to this callback
@@ -421,19 +446,7 @@ def make_executor(context=None):
 
 def main(args=None) -> None:
     """Run one agent node (``ros2 run swarm_agent agent_node``)."""
-    rclpy.init(args=args)
-    node = AgentNode()
-    try:
-        rclpy.spin(node, executor=make_executor())
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        try:
-            node.stop()
-        except Exception:  # noqa: BLE001 - the context may already be gone
-            pass
-        node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(AgentNode, 'agent_node', args, executor=make_executor, stop=AgentNode.stop)
 
 
 if __name__ == '__main__':

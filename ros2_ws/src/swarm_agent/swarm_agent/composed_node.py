@@ -19,7 +19,7 @@ process in the executor, under 10 % in the agents' callbacks):
   every agent's state, one every agent's routes and one logs every agent's status line,
   instead of four timers per agent.
 - The agents have no parameter or type-description services (seven services each) and
-  their per-robot topics have no default QoS event handlers (``agent_node.lean_publisher``).
+  their per-robot topics have no default QoS event handlers (``swarm_agent.lean_endpoints``).
   Their parameters are the container's (listed by ``ros2 param dump
   /agents_container``) plus the fleet file's.
 - With ``sensor_batch`` (``launch_swarm.py --composed`` sets it, with sim_node's) the
@@ -52,11 +52,18 @@ from rclpy.time_source import TimeSource
 from std_msgs.msg import Int32MultiArray
 import yaml
 
-from swarm_agent.agent_node import AgentNode, make_executor, RadioBatcher
+from swarm_agent.agent_node import (
+    AgentNode,
+    declare_brain_parameters,
+    make_executor,
+    RadioBatcher,
+    set_brain_parameters,
+)
 from swarm_agent.brain import BrainConfigError
 from swarm_agent.conversions import sensor_batch_from_msg, stamp_seconds
 from swarm_agent.packet import PacketError
 from swarm_mission import qos
+from swarm_mission.node_runner import BAD_INPUT
 from swarm_msgs.msg import ForceBatch, FormationShape, GoalArray, RadioPacketArray, SensorBatch
 
 SHARED = {
@@ -94,14 +101,16 @@ class ComposedAgents(Node):
     def __init__(self, executor, **kwargs) -> None:
         super().__init__('agents_container', **kwargs)
         for name, (default, text) in SHARED.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=text))
+            self.declare_parameter(name, default,
+                                   ParameterDescriptor(description=text, read_only=True))
+        # The brain's tunables, for every agent of the process; live ones apply to all.
+        settings = declare_brain_parameters(self)
         self.declare_parameter('agent_ids', Parameter.Type.INTEGER_ARRAY, ParameterDescriptor(
             description='Ids of the fleet to run here (unset: all); the others run elsewhere'))
         p = {name: self.get_parameter(name).value for name in SHARED}
         only = self.get_parameter_or('agent_ids').value
         use_sim_time = self.get_parameter('use_sim_time').value
-        with open(p['fleet_file'], encoding='utf-8') as stream:
-            robots = yaml.safe_load(stream)['robots']
+        robots = _fleet_robots(p['fleet_file'])
         if only is not None:
             robots = [r for r in robots if int(r['id']) in set(only)]
         self.executor_ = executor
@@ -149,7 +158,7 @@ class ComposedAgents(Node):
                 Parameter('state_rate_hz', value=float(p['state_rate_hz'])),
                 Parameter('routes_rate_hz', value=float(p['routes_rate_hz'])),
                 Parameter('start_type_description_service', value=False),
-            ]
+            ] + [Parameter(name, value=value) for name, value in settings.items()]
             node = AgentNode('agent', namespace=f'/agent_{agent_id}',
                              tx_sink=self._radio.extend, own_timers=False,
                              shared_inputs=bool(p['sensor_batch']),
@@ -179,6 +188,9 @@ class ComposedAgents(Node):
                                      lambda m: self._each('on_shape', m), latched)
             self.create_subscription(GoalArray, '/swarm/goals',
                                      lambda m: self._each('on_goals', m), latched)
+        self.add_on_set_parameters_callback(
+            lambda params: set_brain_parameters([a.brain for a in self.agents.values()],
+                                                params))
         self.get_logger().info(f'{len(self.agents)} agents composed in one process'
                                + (', inputs from /swarm/sensor_batch' if p['sensor_batch']
                                   else ''))
@@ -248,11 +260,38 @@ class ComposedAgents(Node):
         self.agents.clear()
 
 
+def _fleet_robots(path: str) -> list[dict]:
+    """The fleet file's robots; FleetError names the file and what is wrong."""
+    if not path:
+        raise FleetError('parameter fleet_file is not set: give a fleet YAML with robots '
+                         '(id, type, beacon, x, y), e.g. -p fleet_file:=fleet.yaml')
+    try:
+        with open(path, encoding='utf-8') as stream:
+            robots = yaml.safe_load(stream)['robots']
+        for robot in robots:
+            int(robot['id']), int(robot['type']), float(robot['x']), float(robot['y'])
+    except OSError as exc:
+        raise FleetError(f'fleet_file {path}: {exc.strerror}') from None
+    except (yaml.YAMLError, KeyError, TypeError, ValueError) as exc:
+        raise FleetError(f'fleet_file {path} is not a fleet (robots: [{{id, type, beacon, x, '
+                         f'y}}, ...]): {type(exc).__name__} {exc}') from None
+    return robots
+
+
+class FleetError(ValueError):
+    """A fleet file that cannot be read; the message names it."""
+
+
 def main(args=None) -> None:
     """Run a composed swarm (``ros2 run swarm_agent composed_node``)."""
     rclpy.init(args=args)
     executor = make_executor()
-    container = ComposedAgents(executor)
+    try:
+        container = ComposedAgents(executor)
+    except BAD_INPUT as exc:
+        print(f'composed_node: {" ".join(str(exc).split())}', file=sys.stderr)
+        rclpy.try_shutdown()
+        sys.exit(2)
     executor.add_node(container)
     try:
         executor.spin()

@@ -1,14 +1,10 @@
-"""hw_agent_node: swarm_agent's agent_node with the distances of the 2 x 2 m arena (ch. 5).
+"""hw_agent_node: swarm_agent's agent_node on a real robot seen by the overhead camera (ch. 5).
 
-The agent brain's parking hysteresis and collision margins are sized for the 100 m
-simulation with its 2 m LPS noise (BrainConfig: park within 0.3 m of the goal, resume
-beyond 0.8 m; collision avoidance keeps 0.3 m beyond the summed coverage radii). In
-the hardware arena every goal is closer than 0.8 m and the goals of Table 5.1's robots
-are about 0.3 m apart, so with those values the robots never leave their start (parked)
-or are pushed off their goals by their neighbours. A camera pose is good to about 1 cm,
-so this node runs the unchanged AgentNode and only sets those distances (PARAMETERS,
-defaults equal to config/hw_agent.yaml) on its brain before it starts. Everything else
-(partition, consensus assignment, setpoint of thesis 3.2.4, mesh) is agent_node's.
+The brain and its parameters are agent_node's; config/hw_agent.yaml sets the distances
+of the 2 x 2 m arena on them (park within 2 cm of the goal, resume beyond 6 cm, 3.5
+cm/s: the brain's defaults are sized for the 100 m simulation with its 2 m LPS noise,
+and with them the robots would never leave their start). This node adds what a robot
+without an IMU or LPS needs from the camera.
 
 Camera poses. The thesis's robots have no IMU and no LPS (5.1): the camera position is
 their position. agent_node feeds it to the Kalman filter of 3.1.4 as a GPS fix, but with
@@ -17,11 +13,8 @@ lags the robot more and more (measured: 0.25 m behind after 20 s, so robots over
 their goals). This node therefore sets the estimate from each camera pose: position as
 measured, velocity as the camera displacement over ``velocity_window`` seconds. A robot
 the camera has not seen for ``pose_timeout`` seconds keeps its last estimate, LOST, with
-an uncertainty that grows as far as it can have driven since (``setpoint_v_max`` times
+an uncertainty that grows as far as it can have driven since (``setpoint.v_max`` times
 the time without a pose), so its state says how little its position is known.
-
-Stopgap: once agent_node declares these parameters itself, launch agent_node with
-config/hw_agent.yaml instead.
 """
 
 from __future__ import annotations
@@ -32,53 +25,42 @@ import sys
 from geometry_msgs.msg import PoseStamped
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
-import rclpy
-from rclpy.executors import ExternalShutdownException
 
 from swarm_agent.agent_node import AgentNode, make_executor
-from swarm_agent.setpoint import SetpointParams
+from swarm_mission.node_runner import run_node
 
 PARAMETERS = {
-    'hold_radius': (0.02, 'Within this distance of its goal the robot parks, m'),
-    'resume_radius': (0.06, 'A parked robot moves again beyond this distance, m'),
-    'setpoint_gain': (0.4, 'Setpoint speed per metre of remaining path, 1/s (3.2.4)'),
-    'setpoint_v_max': (0.035, 'Setpoint speed limit, m/s (the bridge max_speed)'),
-    'avoid_rate': (1.0, 'A pair closes its gap at most this fast per metre of gap, 1/s'),
-    'avoid_buffer': (0.0, 'Gap kept free beyond the summed coverage radii, m'),
-    'yield_margin': (0.03, 'A parked robot steps aside for one closer than this beyond '
-                           'the buffer, m (goals are about 0.34 m apart)'),
-    'arrive_radius': (0.005, 'Closer than this to the goal the setpoint is zero, m'),
     'velocity_window': (0.5, 'Camera displacement over this many seconds is the velocity'),
     'pose_timeout': (0.5, 'Without a camera pose for this long the robot is LOST, s'),
 }
 
 
 class HwAgentNode(AgentNode):
-    """AgentNode whose brain uses the arena's distances; see the module docstring."""
+    """AgentNode whose estimate comes from camera poses; see the module docstring."""
 
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)
         for name, (default, text) in PARAMETERS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=text))
+            self.declare_parameter(name, default,
+                                   ParameterDescriptor(description=text, read_only=True))
         p = {name: float(self.get_parameter(name).value) for name in PARAMETERS}
-        if not 0.0 < p['hold_radius'] < p['resume_radius']:
-            raise ValueError(f'hold_radius {p["hold_radius"]} must be positive and below '
-                             f'resume_radius {p["resume_radius"]}')
-        config = self.brain.config
-        config.hold_radius = p['hold_radius']
-        config.resume_radius = p['resume_radius']
-        config.setpoint = SetpointParams(
-            gain=p['setpoint_gain'], v_max=p['setpoint_v_max'], avoid_rate=p['avoid_rate'],
-            avoid_buffer=p['avoid_buffer'], yield_margin=p['yield_margin'],
-            arrive_radius=p['arrive_radius'])
+        for name, value in p.items():
+            if not (np.isfinite(value) and value > 0.0):
+                raise ValueError(f'parameter {name} must be a positive number of seconds, '
+                                 f'got {value}: e.g. -p {name}:={PARAMETERS[name][0]}')
         self._window = p['velocity_window']
         self._pose_timeout = p['pose_timeout']
-        self._v_max = p['setpoint_v_max']
         self._poses: deque[tuple[float, float, float]] = deque()
         self._stale = False
         self.create_timer(0.1, self._check_pose_age)
-        self.get_logger().info(f'arena distances: park {p["hold_radius"]} m, resume '
-                               f'{p["resume_radius"]} m, v_max {p["setpoint_v_max"]} m/s')
+        config = self.brain.config
+        self.get_logger().info(f'arena distances: park {config.hold_radius} m, resume '
+                               f'{config.resume_radius} m, v_max {config.setpoint.v_max} m/s')
+
+    @property
+    def _v_max(self) -> float:
+        """How fast the robot can drive away from its last pose (setpoint.v_max)."""
+        return self.brain.config.setpoint.v_max
 
     def _on_pose(self, msg: PoseStamped) -> None:
         """Camera pose: the estimate is the measurement (see the module docstring)."""
@@ -115,19 +97,8 @@ class HwAgentNode(AgentNode):
 
 def main(args: list[str] | None = None) -> None:
     """Run one hardware agent (``ros2 run swarm_bridge hw_agent_node``)."""
-    rclpy.init(args=args)
-    node = HwAgentNode()
-    try:
-        rclpy.spin(node, executor=make_executor())
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        try:
-            node.stop()
-        except Exception:  # noqa: BLE001 - the context may already be gone
-            pass
-        node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(HwAgentNode, 'hw_agent_node', args, executor=make_executor,
+             stop=HwAgentNode.stop)
 
 
 if __name__ == '__main__':
