@@ -54,6 +54,7 @@ import yaml
 
 from swarm_agent.agent_node import (
     AgentNode,
+    BRAIN_PARAMETERS,
     declare_brain_parameters,
     make_executor,
     RadioBatcher,
@@ -158,7 +159,10 @@ class ComposedAgents(Node):
                 Parameter('state_rate_hz', value=float(p['state_rate_hz'])),
                 Parameter('routes_rate_hz', value=float(p['routes_rate_hz'])),
                 Parameter('start_type_description_service', value=False),
-            ] + [Parameter(name, value=value) for name, value in settings.items()]
+            ] + [Parameter(name, value=value) for name, value in settings.items()
+                 # only what was set on the container: a params file's /**/agent
+                 # section reaches each agent node directly
+                 if value != BRAIN_PARAMETERS[name].default]
             node = AgentNode('agent', namespace=f'/agent_{agent_id}',
                              tx_sink=self._radio.extend, own_timers=False,
                              shared_inputs=bool(p['sensor_batch']),
