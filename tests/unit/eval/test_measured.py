@@ -195,13 +195,14 @@ def test_a_run_record_gives_the_command_and_provenance(tmp_path):
     run = RUNS['faults']
     path = _write(tmp_path / 'faults', 'faults.json', {'cases': {}})
     argv = [*measured.command(run.argv, path), '--seeds', '2']
-    _write(path, measured.RECORD, {'argv': argv, 'commit': 'abcdef1234567890', 'dirty': True,
+    changed = [' M ros2_ws/src/swarm_sim/swarm_sim/world.py', ' M README.md']
+    _write(path, measured.RECORD, {'argv': argv, 'commit': 'abcdef1234567890', 'dirty': changed,
                                    'started': '2026-12-03T14:00:00+00:00', 'wall_s': 41.5,
                                    'returncode': 0, 'cores': 2, 'python': '3.11.7'})
     assert measured.shown_command(run, path).endswith('--seeds 2')
     assert measured.provenance(run, path).startswith(
-        '`faults`: commit `abcdef123456` with uncommitted changes, 2026-12-03T14:00:00+00:00, '
-        '41.5 s wall, exit 0, 2 cores, Python 3.11.7')
+        '`faults`: commit `abcdef123456` with uncommitted changes to 2 files (measure.json '
+        'names them), 2026-12-03T14:00:00+00:00, 41.5 s wall, exit 0, 2 cores, Python 3.11.7')
 
 
 def test_run_runs_a_command_once_and_records_it(tmp_path, capsys):
@@ -213,6 +214,7 @@ def test_run_runs_a_command_once_and_records_it(tmp_path, capsys):
     record = json.loads((tmp_path / 'echo' / measured.RECORD).read_text())
     assert record['argv'][-1] == str((tmp_path / 'echo').resolve())
     assert record['returncode'] == 0 and record['cores'] >= 1
+    assert len(record['commit']) == 40 and isinstance(record['dirty'], list)
     assert 'hello' in (tmp_path / 'echo' / 'measure.log').read_text()
     assert measured.run_rows([row], tmp_path) == 0        # files there: skipped
     assert 'skipped' in capsys.readouterr().out

@@ -366,7 +366,7 @@ ROWS: tuple[Row, ...] = (
     Row('thesis', 'Thesis scenario (circle_314), headless, seeds 0 and 1',
         (_cmd('thesis', 'scripts/evaluate.py', '--method bubble --shape circle_314 --agents '
               '50 --trials 2 --workers 1 --duration 400', ('metrics.json',), evaluate_result),),
-        'about 3 min'),
+        'about 2 min'),
     Row('chevron', 'A long concave shape (20 m x 38 m chevron, 7 vertices) with 16 agents and '
         '4 beacons, headless: the case where goals lie out of reach of three beacons',
         (_pytest('chevron', 'tests/unit/sim/test_beacon_goals_headless.py -q',
@@ -437,7 +437,9 @@ def run_one(run: Run, out: pathlib.Path, extra: Sequence[str] = ()) -> int:
     where = where.relative_to(repo_root()) if where.is_relative_to(repo_root()) else where
     argv = command(run.argv, where) + list(extra)
     print(f'measure: {run.name}: {shlex.join(argv)}', flush=True)
-    started = datetime.datetime.now(datetime.UTC)
+    record = {'argv': argv, 'extra': list(extra), 'commit': git('rev-parse', 'HEAD'),
+              'dirty': git('status', '--porcelain', '--untracked-files=no').splitlines(),
+              'started': datetime.datetime.now(datetime.UTC).isoformat(timespec='seconds')}
     t0 = time.monotonic()
     with open(path / (run.stdout or 'measure.log'), 'wb') as log:
         proc = subprocess.Popen(argv, cwd=repo_root(), stdout=subprocess.PIPE,
@@ -447,13 +449,10 @@ def run_one(run: Run, out: pathlib.Path, extra: Sequence[str] = ()) -> int:
             sys.stdout.buffer.write(chunk)
             sys.stdout.flush()
         code = proc.wait()
-    wall = time.monotonic() - t0
-    record = {'argv': argv, 'extra': list(extra), 'commit': git('rev-parse', 'HEAD'),
-              'dirty': bool(git('status', '--porcelain', '--untracked-files=no')),
-              'started': started.isoformat(timespec='seconds'), 'wall_s': round(wall, 1),
-              'returncode': code, 'cores': os.cpu_count(), 'python': platform.python_version()}
+    record.update(wall_s=round(time.monotonic() - t0, 1), returncode=code,
+                  cores=os.cpu_count(), python=platform.python_version())
     (path / RECORD).write_text(json.dumps(record, indent=2) + '\n', encoding='utf-8')
-    print(f'measure: {run.name}: exit {code} after {wall:.0f} s -> {path}', flush=True)
+    print(f'measure: {run.name}: exit {code} after {record["wall_s"]:.0f} s -> {path}', flush=True)
     return code
 
 
@@ -461,13 +460,12 @@ def run_rows(rows: Sequence[Row], out: pathlib.Path, force: bool = False,
              extra: Mapping[str, Sequence[str]] | None = None) -> int:
     """Run every run of ``rows`` whose files are missing (all with ``force``)."""
     failed = 0
-    for row in rows:
-        for run in row.runs:
-            if measured(run, out / run.name) and not force:
-                print(f'measure: {run.name}: outputs exist in {out / run.name}, skipped '
-                      '(--force runs it again)', flush=True)
-                continue
-            failed += run_one(run, out, (extra or {}).get(run.name, ())) != 0
+    for run in (run for row in rows for run in row.runs):
+        if measured(run, out / run.name) and not force:
+            print(f'measure: {run.name}: outputs exist in {out / run.name}, skipped (--force '
+                  'runs it again)', flush=True)
+            continue
+        failed += run_one(run, out, (extra or {}).get(run.name, ())) != 0
     return 1 if failed else 0
 
 
@@ -482,7 +480,10 @@ def provenance(run: Run, path: pathlib.Path) -> str:
     if not measured(run, path):
         return f'`{run.name}`: {NOT_MEASURED}'
     if rec := _record(path):
-        dirty = ' with uncommitted changes' if rec.get('dirty') else ''
+        changed = rec.get('dirty')      # the tracked files changed when it started
+        count = f' to {len(changed)} files ({RECORD} names them)' \
+            if isinstance(changed, list) else ''
+        dirty = f' with uncommitted changes{count}' if changed else ''
         return (f'`{run.name}`: commit `{rec.get("commit", "")[:12] or "unknown"}`{dirty}, '
                 f'{rec.get("started")}, {rec.get("wall_s")} s wall, exit '
                 f'{rec.get("returncode")}, {rec.get("cores")} cores, Python {rec.get("python")}'
