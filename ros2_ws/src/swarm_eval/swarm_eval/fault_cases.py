@@ -83,10 +83,6 @@ def _setting_event(name: str, value: float):
     return apply
 
 
-def _move_wall(swarm: HeadlessSwarm, t: float) -> None:
-    swarm.medium.move_wall(t)
-
-
 def configure_fault(swarm: HeadlessSwarm, case: dict, config: dict, seed: int
                     ) -> tuple[float, float]:
     """Schedule the case's fault and its observation window; return (first, last) time."""
@@ -100,10 +96,8 @@ def configure_fault(swarm: HeadlessSwarm, case: dict, config: dict, seed: int
             apply_setting(swarm.medium, name, value, 0.0, sc.half_size)
         else:
             events.append((t, _setting_event(name, value)))
-        if name == 'radio_wall_speed_mps':
-            # sim_node moves the wall with every link update; here every record period
-            steps = int((plan['last'] - t) / sc.record_period_s) + 1
-            events += [(t + k * sc.record_period_s, _move_wall) for k in range(steps + 1)]
+        # A sweeping wall moves with every link update of the world (world_model.World),
+        # as in sim_node: no events of its own.
     if case['kind'] != 'loss':
         # A swarm settled through the fault would otherwise stop one hold window after
         # it, before a lost beacon or a shorter range has shown its effect on
