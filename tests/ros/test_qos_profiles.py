@@ -10,7 +10,7 @@ rclpy_qos = pytest.importorskip('rclpy.qos')
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 
-from swarm_agent.agent_node import lean_publisher, lean_subscription  # noqa: E402
+from swarm_agent.lean_endpoints import lean_publisher, lean_subscription  # noqa: E402
 from swarm_mission import qos  # noqa: E402
 
 

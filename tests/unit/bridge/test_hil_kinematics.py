@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from swarm_bridge import emulator, protocol, xbee
-from swarm_bridge.hil_world_node import initial_poses
+from swarm_bridge.fleet import initial_poses
 from swarm_bringup import hil
 
 

@@ -6,6 +6,7 @@ Pure module; reads config/fleet.yaml (thesis Table 5.1: five robots, three types
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 import pathlib
 
 import yaml
@@ -111,3 +112,14 @@ def load_cover_colors(path: str | pathlib.Path | None = None) -> dict[str, tuple
         raise FleetError(f'{path}: robot colours {unknown} are not in cover_colors; add '
                          'their RGB values there')
     return colors
+
+
+def initial_poses(flat: list[float], count: int) -> list[tuple[float, float, float]]:
+    """Poses (x m, y m, yaw rad CCW) from the flat parameter list; a row when empty."""
+    if len(flat) <= 1:
+        return [(-0.8 + 0.4 * i, -0.8, 0.0) for i in range(count)]
+    if len(flat) != 3 * count:
+        raise ValueError(f'initial_poses holds {len(flat)} numbers; give x,y,yaw_deg for '
+                         f'each of the {count} robots ({3 * count} numbers)')
+    return [(flat[3 * i], flat[3 * i + 1], math.radians(flat[3 * i + 2]))
+            for i in range(count)]

@@ -48,7 +48,7 @@ from sensor_msgs.msg import Image
 from swarm_agent.conversions import frames_or_log, frames_to_msg
 from swarm_bridge.camera_render import CameraRenderer, Cover, sim_camera_config, SimCamera
 from swarm_bridge.emulator import EmulatedRadio, PtyEmulator
-from swarm_bridge.fleet import load_cover_colors, load_fleet
+from swarm_bridge.fleet import initial_poses, load_cover_colors, load_fleet
 from swarm_bridge.hil_mesh import HilMesh
 from swarm_bridge.image_msgs import image_to_msg
 from swarm_mission import qos
@@ -78,17 +78,6 @@ PARAMETERS = {
     'radio_latency_s': (MEDIUM.latency_s, 'Propagation and processing delay of a frame, s'),
     'radio_seed': (0, 'Seed of the frame losses'),
 }
-
-
-def initial_poses(flat: list[float], count: int) -> list[tuple[float, float, float]]:
-    """Poses (x m, y m, yaw rad CCW) from the flat parameter list; a row when empty."""
-    if len(flat) <= 1:
-        return [(-0.8 + 0.4 * i, -0.8, 0.0) for i in range(count)]
-    if len(flat) != 3 * count:
-        raise ValueError(f'initial_poses holds {len(flat)} numbers; give x,y,yaw_deg for '
-                         f'each of the {count} robots ({3 * count} numbers)')
-    return [(flat[3 * i], flat[3 * i + 1], math.radians(flat[3 * i + 2]))
-            for i in range(count)]
 
 
 class HilWorldNode(Node):

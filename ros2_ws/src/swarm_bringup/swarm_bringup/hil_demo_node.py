@@ -144,8 +144,7 @@ def hil_poses() -> tuple[dict, list[tuple[float, float, float]]]:
     """The hil_world parameters of config/hil.yaml and the initial poses in fleet order."""
     import yaml
 
-    from swarm_bridge.fleet import load_fleet
-    from swarm_bridge.hil_world_node import initial_poses
+    from swarm_bridge.fleet import initial_poses, load_fleet
 
     params = yaml.safe_load(bridge_config('hil.yaml').read_text())['hil_world']['ros__parameters']
     robots = load_fleet(params['fleet_file'] or None)
