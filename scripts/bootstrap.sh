@@ -87,6 +87,26 @@ if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$STAMP_DEPS" 2>/dev/null)" != "$WANT
 fi
 
 # --- 3. colcon build ---------------------------------------------------------------------
+# ros2_ws/src/tf2_msgs stands in for the upstream tf2_msgs (TFMessage only) where no ROS
+# installation provides it (the PyPI wheels have none); a system ROS that has it keeps
+# its own: the package is then skipped (COLCON_IGNORE) and an earlier build of it removed.
+tf2_msgs_installed() {
+  local prefix prefixes
+  if [ "$MODE" = wheels ]; then prefixes=("$VENV"); else IFS=: read -ra prefixes <<<"${AMENT_PREFIX_PATH:-}"; fi
+  for prefix in "${prefixes[@]}"; do
+    case "$prefix" in "$WS"/*) continue ;; esac
+    [ -e "$prefix/share/ament_index/resource_index/packages/tf2_msgs" ] && return 0
+  done
+  return 1
+}
+if [ -d "$WS/src/tf2_msgs" ]; then
+  if tf2_msgs_installed; then
+    touch "$WS/src/tf2_msgs/COLCON_IGNORE"
+    rm -rf "$WS/build/tf2_msgs" "$WS/install/tf2_msgs"
+  else
+    rm -f "$WS/src/tf2_msgs/COLCON_IGNORE"
+  fi
+fi
 ws_hash() {
   (cd "$WS/src" && find . -type f \
       -not -path '*/__pycache__/*' -not -name '*.pyc' -not -path '*.egg-info*' -print0 \
