@@ -27,6 +27,7 @@ setup(
             'launch_swarm = swarm_bringup.supervisor_node:main',
             'hil_demo = swarm_bringup.hil_demo_node:main',
             'demo = swarm_bringup.demo:main',
+            'recorder_node = swarm_bringup.recorder_node:main',
         ],
     },
 )

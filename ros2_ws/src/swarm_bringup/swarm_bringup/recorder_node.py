@@ -1,0 +1,138 @@
+"""Record a run's ROS topics into an MCAP bag (swarm_bringup.bag), as they are published.
+
+  python -m swarm_bringup.recorder_node --ros-args -p output:=results/demo/run.mcap \\
+      -p use_sim_time:=true [-p topics:='[/swarm/goals,/agent_0/state]'] \\
+      [-p exclude:='[/swarm/sensor_batch]']
+
+Every ``discovery_period_s`` (wall time) the node looks at the graph and subscribes to
+each topic it has not yet subscribed to (all topics, or those of ``topics``, less those
+of ``exclude``) as raw CDR bytes (``raw=True``: no deserialization), with the swarm's QoS
+profile of the topic made compatible with its publishers (``bag.recording_qos``;
+transient local for the latched ``/swarm/shape`` and ``/swarm/goals``). A message's log
+and publish time is the node clock's time when it arrives: sim time under
+``use_sim_time``. The bag's open chunk is written out at least every ``flush_period_s``
+(wall time), so a killed recorder loses at most that; Ctrl-C (SIGINT) closes the bag
+with its summary. A topic carrying several types or a type without an installed
+``.msg`` is skipped with one warning.
+
+Subscribes: every recorded topic. Publishes: nothing (besides rclpy's own).
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile
+
+from swarm_bringup.bag import BagError, BagWriter, FLUSH_PERIOD_S, recording_qos
+from swarm_mission.node_runner import run_node
+
+EXAMPLE_OUTPUT = 'results/demo/run.mcap'
+
+
+def message_class(type_name: str):
+    """The Python class of ``pkg/msg/Type`` from its installed package."""
+    package, _, name = type_name.split('/')
+    try:
+        return getattr(importlib.import_module(f'{package}.msg'), name)
+    except (ImportError, AttributeError):
+        raise BagError(f'message type {type_name}: no Python class installed') from None
+
+
+def _topic_list(value, name: str) -> list[str]:
+    topics = list(value or [])
+    bad = [t for t in topics if not t.startswith('/') or t.endswith('/') or ' ' in t]
+    if bad:
+        raise ValueError(f'parameter {name}: {bad[0]!r} is not an absolute topic name; '
+                         f"write e.g. {name}:='[/swarm/goals,/agent_0/state]'")
+    return topics
+
+
+class RecorderNode(Node):
+    """Subscribes to the graph's topics and writes what arrives into one bag."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__('recorder', **kwargs)
+        positive = FloatingPointRange(from_value=0.01, to_value=3600.0)
+        self.declare_parameter('output', '', ParameterDescriptor(
+            description=f'path of the MCAP bag to write, e.g. {EXAMPLE_OUTPUT}',
+            read_only=True))
+        self.declare_parameter('topics', Parameter.Type.STRING_ARRAY, ParameterDescriptor(
+            description='absolute names of the topics to record (unset or empty: all)',
+            read_only=True))
+        self.declare_parameter('exclude', Parameter.Type.STRING_ARRAY, ParameterDescriptor(
+            description='absolute names of topics not to record', read_only=True))
+        self.declare_parameter('flush_period_s', FLUSH_PERIOD_S, ParameterDescriptor(
+            description='wall seconds between flushes of the bag (the most a crash loses)',
+            floating_point_range=[positive], read_only=True))
+        self.declare_parameter('discovery_period_s', 1.0, ParameterDescriptor(
+            description='wall seconds between looks for new topics',
+            floating_point_range=[positive], read_only=True))
+        output = self.get_parameter('output').value
+        if not output:
+            raise ValueError(f'parameter output is empty; give the bag path, e.g. '
+                             f'-p output:={EXAMPLE_OUTPUT}')
+        self.only = set(_topic_list(self.get_parameter_or('topics').value, 'topics'))
+        self.exclude = set(_topic_list(self.get_parameter_or('exclude').value, 'exclude'))
+        self.bag = BagWriter(output, self.get_parameter('flush_period_s').value)
+        self.subscriptions_by_topic: dict[str, object] = {}
+        self.skipped: set[str] = set()
+        # Wall-clock timers: flushing and discovery go on while sim time stands still.
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(min(0.25, self.bag.flush_period_s), self.bag.flush_if_due,
+                          clock=steady)
+        self.create_timer(self.get_parameter('discovery_period_s').value, self.discover,
+                          clock=steady)
+        self.get_logger().info(f'recording {"all topics" if not self.only else sorted(self.only)}'
+                               f' into {output}')
+
+    def discover(self) -> None:
+        """Subscribe to every wanted topic not yet recorded that has a publisher."""
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self.subscriptions_by_topic or topic in self.skipped or \
+                    topic in self.exclude or (self.only and topic not in self.only):
+                continue
+            publishers = self.get_publishers_info_by_topic(topic)
+            if not publishers:
+                continue   # only subscribers so far: the publisher's QoS is not known
+            if len(types) != 1:
+                self._skip(topic, f'it carries several types {types}')
+                continue
+            try:
+                msg_type = message_class(types[0])
+                self.bag.add_topic(topic, types[0])
+            except BagError as exc:
+                self._skip(topic, str(exc))
+                continue
+            offers = [(int(p.qos_profile.reliability), int(p.qos_profile.durability))
+                      for p in publishers]
+            self.subscriptions_by_topic[topic] = self.create_subscription(
+                msg_type, topic, lambda data, t=topic: self.on_message(t, data),
+                QoSProfile(**recording_qos(topic, offers)), raw=True)
+
+    def _skip(self, topic: str, why: str) -> None:
+        self.skipped.add(topic)
+        self.get_logger().warning(f'not recording {topic}: {why}')
+
+    def on_message(self, topic: str, data: bytes) -> None:
+        self.bag.write(topic, data, self.get_clock().now().nanoseconds)
+
+    def close(self) -> None:
+        """Close the bag (summary and indexes written)."""
+        if not self.bag.closed:
+            self.bag.close()
+            total = sum(self.bag.counts.values())
+            self.get_logger().info(f'wrote {total} messages of {len(self.bag.counts)} '
+                                   f'topics into {self.bag.path}')
+
+
+def main(args=None) -> None:
+    run_node(lambda: RecorderNode(), 'recorder_node', args, stop=RecorderNode.close)
+
+
+if __name__ == '__main__':
+    main()
