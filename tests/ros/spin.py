@@ -31,3 +31,20 @@ def spin_until(executor: Executor, condition: Callable[[], bool], timeout: float
     while not condition() and time.monotonic() < deadline:
         executor.spin_once(timeout_sec=step)
     return condition()
+
+
+def beacon_agent(context: rclpy.Context, executor: Executor):
+    """Beacon agent 5 (type 2) deployed at (-10, 0) and a ``probe`` node, both spun by
+    ``executor``; the caller destroys them."""
+    from rclpy.parameter import Parameter
+
+    from swarm_agent.agent_node import AgentNode
+
+    agent = AgentNode('agent', namespace='/agent_5', context=context, parameter_overrides=[
+        Parameter('agent_id', value=5), Parameter('agent_type', value=2),
+        Parameter('is_beacon', value=True), Parameter('initial_x', value=-10.0),
+        Parameter('initial_y', value=0.0)])
+    probe = rclpy.create_node('probe', context=context)
+    executor.add_node(agent)
+    executor.add_node(probe)
+    return agent, probe

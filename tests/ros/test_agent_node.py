@@ -13,6 +13,7 @@ from geometry_msgs.msg import PoseWithCovarianceStamped, WrenchStamped  # noqa: 
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile  # noqa: E402
+from spin import beacon_agent  # noqa: E402
 
 from swarm_agent.agent_node import AgentNode  # noqa: E402
 from swarm_agent.brain import BrainConfigError  # noqa: E402
@@ -34,13 +35,7 @@ def test_beacon_agent_drives_to_its_goal_and_reports(tmp_path):
     context = rclpy.Context()
     rclpy.init(context=context)
     executor = SingleThreadedExecutor(context=context)
-    agent = AgentNode('agent', namespace='/agent_5', context=context, parameter_overrides=[
-        Parameter('agent_id', value=5), Parameter('agent_type', value=2),
-        Parameter('is_beacon', value=True), Parameter('initial_x', value=-10.0),
-        Parameter('initial_y', value=0.0)])
-    probe = rclpy.create_node('probe', context=context)
-    executor.add_node(agent)
-    executor.add_node(probe)
+    agent, probe = beacon_agent(context, executor)
     got: dict[str, list] = {'tx': [], 'state': [], 'force': [], 'routes': []}
     probe.create_subscription(RadioPacketArray, '/radio/tx', got['tx'].append,
                               QoSProfile(**qos.RADIO))

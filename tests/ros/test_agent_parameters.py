@@ -19,8 +19,8 @@ from geometry_msgs.msg import PoseWithCovarianceStamped, Twist  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile  # noqa: E402
+from spin import beacon_agent  # noqa: E402
 
-from swarm_agent.agent_node import AgentNode  # noqa: E402
 from swarm_mission import qos  # noqa: E402
 from swarm_mission.conversions import goals_to_msg, shape_to_msg  # noqa: E402
 from swarm_mission.goals import Goal  # noqa: E402
@@ -34,13 +34,7 @@ def beacon():
     context = rclpy.Context()
     rclpy.init(context=context)
     executor = SingleThreadedExecutor(context=context)
-    agent = AgentNode('agent', namespace='/agent_5', context=context, parameter_overrides=[
-        Parameter('agent_id', value=5), Parameter('agent_type', value=2),
-        Parameter('is_beacon', value=True), Parameter('initial_x', value=-10.0),
-        Parameter('initial_y', value=0.0)])
-    probe = rclpy.create_node('probe', context=context)
-    executor.add_node(agent)
-    executor.add_node(probe)
+    agent, probe = beacon_agent(context, executor)
     speeds: list[float] = []
     probe.create_subscription(Twist, '/agent_5/cmd_vel',
                               lambda m: speeds.append(math.hypot(m.linear.x, m.linear.y)),

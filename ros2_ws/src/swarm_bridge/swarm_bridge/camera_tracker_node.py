@@ -27,17 +27,16 @@ import sys
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import ParameterDescriptor
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import Image
 
 from swarm_bridge.arena_calibration import Calibration, CalibrationError
-from swarm_bridge.camera_tracker import annotate, CameraTracker, TrackerConfig, TrackerError
-from swarm_bridge.fleet import FleetError, load_cover_colors, load_fleet
+from swarm_bridge.camera_tracker import annotate, CameraTracker, TrackerConfig
+from swarm_bridge.fleet import load_cover_colors, load_fleet
 from swarm_bridge.image_msgs import image_from_msg, image_to_msg, ImageError
 from swarm_mission import qos
+from swarm_mission.node_runner import run_node
 
 DEFAULTS = TrackerConfig()
 PARAMETERS = {
@@ -235,24 +234,9 @@ class CameraTrackerNode(Node):
             self._capture = None
 
 
-def main(args: list[str] | None = None) -> int:
+def main(args: list[str] | None = None) -> None:
     """Run camera_tracker_node until interrupted."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = CameraTrackerNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (CalibrationError, FleetError, TrackerError, ValueError) as exc:
-        print(f'camera_tracker_node: {exc}', file=sys.stderr)
-        return 2
-    finally:
-        if node is not None:
-            node.close()
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    run_node(CameraTrackerNode, 'camera_tracker_node', args, stop=CameraTrackerNode.close)
 
 
 if __name__ == '__main__':

@@ -38,8 +38,6 @@ import time
 from geometry_msgs.msg import PoseStamped
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.time import Time
@@ -52,6 +50,7 @@ from swarm_bridge.fleet import initial_poses, load_cover_colors, load_fleet
 from swarm_bridge.hil_mesh import HilMesh
 from swarm_bridge.image_msgs import image_to_msg
 from swarm_mission import qos
+from swarm_mission.node_runner import run_node
 from swarm_msgs.msg import RadioPacketArray
 from swarm_sim.medium import MediumConfig
 
@@ -206,24 +205,9 @@ def _pose_msg(x: float, y: float, yaw: float, stamp) -> PoseStamped:
     return msg
 
 
-def main(args: list[str] | None = None) -> int:
+def main(args: list[str] | None = None) -> None:
     """Run hil_world_node until interrupted."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = HilWorldNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ValueError as exc:
-        print(f'hil_world_node: {exc}', file=sys.stderr)
-        return 2
-    finally:
-        if node is not None:
-            node.close()
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    run_node(HilWorldNode, 'hil_world_node', args, stop=HilWorldNode.close)
 
 
 if __name__ == '__main__':

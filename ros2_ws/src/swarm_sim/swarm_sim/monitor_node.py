@@ -16,8 +16,6 @@ import threading
 
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
@@ -25,6 +23,7 @@ from swarm_agent.conversions import stamp_seconds
 from swarm_agent.lean_endpoints import lean_subscription
 from swarm_mission import qos
 from swarm_mission.conversions import goals_from_msg, shape_from_msg
+from swarm_mission.node_runner import run_node
 from swarm_mission.shapes import ShapeError
 from swarm_msgs.msg import AgentState, FormationShape, GoalArray, SwarmTruth
 from swarm_sim.metrics import inside_mask, SETTLE_HOLD_S, SETTLE_SPEED, settled_now, SettleTracker
@@ -181,15 +180,7 @@ class MonitorNode(Node):
 
 def main(args=None) -> None:
     """Run the monitor alone (records until Ctrl-C)."""
-    rclpy.init(args=args)
-    node = MonitorNode()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(MonitorNode, 'monitor_node', args)
 
 
 if __name__ == '__main__':
