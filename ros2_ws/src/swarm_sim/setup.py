@@ -13,7 +13,8 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),
-        ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
+        ('share/' + PACKAGE + '/config',
+         glob('config/*.yaml') + glob('config/*.json') + glob('config/*.rviz')),
         ('share/' + PACKAGE + '/launch', glob('launch/*.launch.py')),
     ],
     install_requires=['setuptools'],
@@ -26,6 +27,7 @@ setup(
         'console_scripts': [
             'sim_node = swarm_sim.sim_node:main',
             'monitor_node = swarm_sim.monitor_node:main',
+            'live_view_node = swarm_sim.live_view_node:main',
         ],
     },
 )

@@ -27,10 +27,18 @@ from shapely.geometry import Polygon
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
-from swarm_mission.robot_types import OTHER_COLOUR, TYPE_COLOURS
+from swarm_mission.robot_types import OTHER_COLOUR
+from swarm_sim.live_view import (
+    link_pairs,
+    mode_colour,
+    MODE_COLOURS,
+    polygon_rings,
+    type_colour,
+    UNHEARD,
+)
 
-MODE_COLOURS = {0: (0.1, 0.8, 0.1), 1: (1.0, 0.55, 0.0), 2: (0.9, 0.0, 0.0)}
-UNHEARD = (0.75, 0.75, 0.75)
+__all__ = ['marker_count', 'MODE_COLOURS', 'swarm_markers', 'UNHEARD']
+
 OTHER = OTHER_COLOUR
 
 
@@ -53,10 +61,10 @@ def _outline(stamp, ns: str, first_id: int, polygon: Polygon, rgb, width: float,
              z: float) -> list[Marker]:
     """A closed line strip per ring of ``polygon`` (exterior, then holes)."""
     out = []
-    for k, ring in enumerate([polygon.exterior, *polygon.interiors]):
+    for k, ring in enumerate(polygon_rings(polygon)):
         m = _marker(stamp, ns, first_id + k, Marker.LINE_STRIP, rgb)
         m.scale.x = width
-        m.points = _ring_points(ring.coords, z)
+        m.points = _ring_points([*ring, ring[0]], z)
         out.append(m)
     return out
 
@@ -81,10 +89,8 @@ def swarm_markers(stamp, ids: Sequence[int], types: Sequence[int],
         out.markers.append(clear)
     for i, (rid, rtype, radius) in enumerate(zip(ids, types, radii)):
         x, y = float(positions[i, 0]), float(positions[i, 1])
-        body = _marker(stamp, 'robots', rid, Marker.CYLINDER,
-                       TYPE_COLOURS.get(int(rtype), OTHER), 0.8)
-        mode = _marker(stamp, 'modes', rid, Marker.SPHERE,
-                       MODE_COLOURS.get(modes.get(int(rid), -1), UNHEARD))
+        body = _marker(stamp, 'robots', rid, Marker.CYLINDER, type_colour(rtype), 0.8)
+        mode = _marker(stamp, 'modes', rid, Marker.SPHERE, mode_colour(modes.get(int(rid), -1)))
         if not alive[i]:
             body.action = mode.action = Marker.DELETE
         body.pose.position = Point(x=x, y=y, z=0.05)
@@ -94,8 +100,7 @@ def swarm_markers(stamp, ids: Sequence[int], types: Sequence[int],
         mode.scale.x = mode.scale.y = mode.scale.z = max(0.15, 0.4 * float(radius))
         out.markers += [body, mode]
     for g in goals:
-        disc = _marker(stamp, 'goals', g.id, Marker.CYLINDER,
-                       TYPE_COLOURS.get(int(g.type), OTHER), 0.25)
+        disc = _marker(stamp, 'goals', g.id, Marker.CYLINDER, type_colour(g.type), 0.25)
         disc.pose.position = Point(x=float(g.x), y=float(g.y), z=0.01)
         disc.scale.x = disc.scale.y = 2.0 * float(g.radius)
         disc.scale.z = 0.02
@@ -108,14 +113,13 @@ def swarm_markers(stamp, ids: Sequence[int], types: Sequence[int],
         out.markers += rings
         first += len(rings)
     if links is not None and len(ids):
-        ii, jj = np.nonzero(np.triu(np.asarray(links, dtype=bool), k=1))
-        keep = [k for k in range(len(ii)) if alive[ii[k]] and alive[jj[k]]]
-        if keep:
+        pairs = link_pairs(links, alive)
+        if pairs:
             lines = _marker(stamp, 'links', 0, Marker.LINE_LIST, (0.3, 0.3, 0.9), 0.35)
             lines.scale.x = 0.03
             z = 0.2
-            for k in keep:
-                for i in (ii[k], jj[k]):
+            for pair in pairs:
+                for i in pair:
                     lines.points.append(Point(x=float(positions[i, 0]),
                                               y=float(positions[i, 1]), z=z))
             out.markers.append(lines)
