@@ -30,7 +30,8 @@ def test_wheels_follow_the_kinematics_then_the_agent_watchdog_stops_them():
     yaw = math.radians(30.0)
     t = run(bridge, radio, 0.0, 1.0, agent=1, setpoint=(0.01, 0.02), yaw=yaw)
     board = radio.boards[robots[1].address]
-    speed, alpha = protocol.body_to_polar(*protocol.map_to_body(0.01, 0.02, yaw))
+    # the setpoint is body-frame cmd_vel (REP 103): sent as is, whatever the heading
+    speed, alpha = protocol.body_to_polar(0.01, 0.02)
     for got, want in zip(board.wheel_speeds(), protocol.wheel_speeds(speed, alpha)):
         assert abs(got - want) < 2e-4
     assert bridge.links[1].status.rates == tuple(board.rates)

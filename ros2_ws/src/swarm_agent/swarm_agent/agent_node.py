@@ -17,9 +17,19 @@ Published
   ``/radio/tx`` (swarm_msgs/RadioPacketArray)  what this robot's radio sends (batches at
                                                ``radio_tx_hz``, as the medium delivers)
   ``cmd_force`` (geometry_msgs/WrenchStamped)  LQR force command, map frame (simulation)
-  ``cmd_vel`` (geometry_msgs/Twist)            velocity setpoint, map frame (hardware)
+  ``cmd_vel`` (geometry_msgs/Twist)            velocity setpoint, body frame ``agent_K/
+                                               base_link`` (REP 103; hardware)
   ``state`` (swarm_msgs/AgentState)            estimate, mode, assignment
+  ``odom`` (nav_msgs/Odometry)                 estimate with its covariance: pose in
+                                               ``map``, twist in ``agent_K/base_link``
+  ``/tf`` (tf2_msgs/TFMessage)                 ``map -> agent_K/base_link`` (the estimate)
   ``routes`` (swarm_msgs/RouteTable)           DSDV route table
+
+``state``, ``odom`` and ``/tf`` go out together at ``state_rate_hz``. The body frame's
+heading (``swarm_agent.conversions``, REP 103/105): in simulation the brain estimates
+none and the frame keeps the map axes (yaw 0: the body-frame twist and ``cmd_vel`` equal
+the map-frame velocity and setpoint); with ``external_pose`` (hardware) it is the
+camera's yaw, and ``cmd_vel`` is the setpoint rotated into the robot's frame.
 
 The agent never subscribes to ``/swarm/truth``. With ``partition_locally`` the agent
 computes the partition of the announced shape itself (the thesis's future work: no
@@ -35,6 +45,7 @@ import os
 import sys
 
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist, WrenchStamped
+from nav_msgs.msg import Odometry
 import numpy as np
 from rcl_interfaces.msg import (
     FloatingPointRange,
@@ -47,17 +58,24 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.time import Time
 from sensor_msgs.msg import Imu
+from tf2_msgs.msg import TFMessage
 
 from swarm_agent.agent_factory import make_brain, type_counts_from
 from swarm_agent.brain import BrainConfig, BrainConfigError
 from swarm_agent.conversions import (
     frames_or_log,
     frames_to_msg,
+    Heading,
+    MAP_ALIGNED,
     proximity_from_msg,
     routes_to_msg,
     SensorMessageError,
+    setpoint_to_twist,
+    snapshot_to_odometry,
     snapshot_to_state,
+    snapshot_to_transform,
     stamp_seconds,
+    yaw_of,
 )
 from swarm_agent.lean_endpoints import lean_publisher, lean_subscription
 from swarm_agent.packet import Packet
@@ -96,6 +114,8 @@ PARAMETERS = {
     'status_log_period_s': (30.0, 'Period of the one-line status log (sim seconds); 0: off'),
     'external_pose': (False, 'Hardware: use the camera pose topic instead of the LPS'),
     'external_pose_std': (0.01, 'Standard deviation of the camera pose in metres'),
+    'external_heading_std': (0.05, 'Standard deviation of the camera heading in radians '
+                                   '(the tracker is within 3 degrees rms)'),
     'partition_locally': (False, 'Partition announced shapes on the agent itself'),
     'type_counts': ('', 'Swarm composition for local partitioning, e.g. 1:20,2:20,3:10'),
     'partition_seed': (0, 'Seed of the local partition (same on every agent)'),
@@ -234,6 +254,8 @@ class AgentNode(Node):
             lambda params: set_brain_parameters([self.brain], params))
         self._type_counts = p['type_counts']
         self._last_setpoint: tuple[float, float] | None = None
+        # The body frame's heading (module docstring): map-aligned until a camera pose.
+        self.heading: Heading = MAP_ALIGNED
         self._radio_lag_max = 0.0  # s: worst delay from the medium to this callback
         self._last_force: tuple[float, float] | None = None
         self._last_force_t = -1e9
@@ -258,6 +280,10 @@ class AgentNode(Node):
                            if command_sink is None else None)
         self._cmd_vel = lean_publisher(self, Twist, 'cmd_vel', sensor)
         self._state = lean_publisher(self, AgentState, 'state', state)
+        self._odom = lean_publisher(self, Odometry, 'odom', state)
+        # Reliable and volatile, as tf2's listeners subscribe; /tf is one topic for the
+        # whole tree (absolute, as tf2 tools expect; the frames carry the robot's name).
+        self._tf = lean_publisher(self, TFMessage, '/tf', state)
         self._routes = lean_publisher(self, RouteTable, 'routes', state)
 
         if p['is_beacon']:
@@ -310,6 +336,14 @@ class AgentNode(Node):
         pos = msg.pose.position
         self.brain.on_gps(self._now(), np.array([pos.x, pos.y]),
                           self.params['external_pose_std'])
+        self.set_heading(yaw_of(msg.pose.orientation))
+
+    def set_heading(self, yaw: float, rate: float = 0.0, rate_std: float = 0.0) -> None:
+        """The robot's measured heading (rad, CCW from map x) and its rate (rad/s): the
+        body frame of ``cmd_vel``, ``odom`` and the TF from now on (hardware)."""
+        if math.isfinite(yaw):
+            self.heading = Heading(yaw, self.params['external_heading_std'],
+                                   rate if math.isfinite(rate) else 0.0, rate_std)
 
     def on_range_array(self, msg: RangeArray) -> None:
         """TOA ranges to beacon neighbours (swarm_msgs/RangeArray)."""
@@ -397,18 +431,22 @@ class AgentNode(Node):
                 wrench.header.frame_id = 'map'
                 wrench.wrench.force.x, wrench.wrench.force.y = force
                 self._cmd_force.publish(wrench)
-        # The setpoint changes at the outer-loop rate only: publish it when it changes.
-        setpoint = tuple(float(v) for v in out.velocity_setpoint)
+        # The setpoint changes at the outer-loop rate only, its body-frame form also when
+        # the heading changes (hardware): publish it when it changes.
+        twist = setpoint_to_twist(out.velocity_setpoint, self.heading)
+        setpoint = (twist.linear.x, twist.linear.y)
         if setpoint != self._last_setpoint:
             self._last_setpoint = setpoint
-            twist = Twist()
-            twist.linear.x, twist.linear.y = setpoint
             self._cmd_vel.publish(twist)
 
     def publish_state(self) -> None:
-        """Publish ``state`` (estimate, mode, assignment)."""
-        self._state.publish(snapshot_to_state(self.brain.snapshot(),
-                                              self.get_clock().now().to_msg()))
+        """Publish ``state`` (estimate, mode, assignment), ``odom`` and the TF of the
+        estimate, all of one snapshot and one stamp."""
+        snap, stamp = self.brain.snapshot(), self.get_clock().now().to_msg()
+        self._state.publish(snapshot_to_state(snap, stamp))
+        self._odom.publish(snapshot_to_odometry(snap, stamp, self.heading))
+        self._tf.publish(TFMessage(transforms=[snapshot_to_transform(snap, stamp,
+                                                                     self.heading)]))
 
     def publish_routes(self) -> None:
         """Publish ``routes`` (the DSDV table)."""

@@ -1,14 +1,38 @@
-"""Pure conversions between swarm_msgs messages and the brain's domain types.
+"""Pure conversions between messages and the brain's domain types.
 
 Imports message classes only (no rclpy), so it is tested without a ROS graph.
+
+Standard interfaces (REP 103, REP 105). An agent's estimate is ``map ->
+agent_K/base_link`` (TF, tf2_msgs/TFMessage on /tf) and ``odom`` (nav_msgs/Odometry:
+pose in ``map``, twist in the body frame ``agent_K/base_link``); ``cmd_vel`` is a Twist
+in that body frame. The body frame's heading is a ``Heading``:
+
+- Simulation: ``MAP_ALIGNED`` (yaw 0, exactly). The simulated robots are holonomic
+  (omni wheels, thesis 5.1; point masses or rigid bodies pushed by map-frame forces),
+  and the brain estimates no heading: nothing it senses or commands depends on one (its
+  IMU samples and force commands are in the map frame). A body frame that keeps the map
+  axes is therefore exact for what the brain knows, and REP 105's body-frame twist is
+  the map-frame velocity estimate component by component. The direction of the velocity
+  is not taken as the heading: a holonomic robot does not turn towards its motion, a
+  parked robot has no velocity direction (the frame would spin at every noisy sample),
+  and the body-frame lateral speed would always read zero, as if the robot were a
+  differential drive.
+- Hardware: the overhead camera measures each robot's yaw (thesis 5.3), so the body
+  frame is the robot's own: the agent takes the camera's yaw (and hw_agent_node its
+  rate) as its heading, and rotates its map-frame setpoint into that frame for
+  ``cmd_vel``; the bridge sends it to the board as is.
 """
 
 from __future__ import annotations
 
 from array import array
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+import math
 
 from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Quaternion, TransformStamped, Twist
+from nav_msgs.msg import Odometry
 import numpy as np
 
 from swarm_agent.brain import Snapshot
@@ -211,3 +235,110 @@ def routes_to_msg(owner: int, routes: Iterable, stamp: Time | None = None) -> Ro
         entry.sequence_number = int(r.sequence_number) & 0xFFFFFFFF
         msg.routes.append(entry)
     return msg
+
+
+@dataclass(frozen=True)
+class Heading:
+    """A robot's heading: yaw (rad, counter-clockwise from the map x axis, REP 103), its
+    rate (rad/s) and their standard deviations. See the module docstring."""
+
+    yaw: float = 0.0
+    yaw_std: float = 0.0
+    rate: float = 0.0
+    rate_std: float = 0.0
+
+
+# Simulation: the body frame keeps the map axes (module docstring).
+MAP_ALIGNED = Heading()
+
+
+def base_frame(agent_id: int) -> str:
+    """The body frame of agent ``agent_id`` (REP 105 base_link, one per robot)."""
+    return f'agent_{int(agent_id)}/base_link'
+
+
+def yaw_quaternion(yaw: float) -> Quaternion:
+    """A rotation by ``yaw`` (rad) about z as a geometry_msgs/Quaternion."""
+    return Quaternion(x=0.0, y=0.0, z=math.sin(0.5 * yaw), w=math.cos(0.5 * yaw))
+
+
+def yaw_of(q) -> float:
+    """Yaw (rad, counter-clockwise, in (-pi, pi]) of a geometry_msgs quaternion."""
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def map_to_body(vx: float, vy: float, yaw: float) -> tuple[float, float]:
+    """A map-frame vector in the body frame of a robot heading ``yaw`` (R(yaw)^T v)."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    return c * vx + s * vy, -s * vx + c * vy
+
+
+def setpoint_to_twist(setpoint, heading: Heading = MAP_ALIGNED) -> Twist:
+    """The brain's map-frame velocity setpoint (m/s) as ``cmd_vel``: a Twist in the body
+    frame (REP 103); no rotation is commanded (angular.z 0: the setpoint of thesis 3.2.4
+    is a translation)."""
+    twist = Twist()
+    twist.linear.x, twist.linear.y = map_to_body(float(setpoint[0]), float(setpoint[1]),
+                                                 heading.yaw)
+    return twist
+
+
+def snapshot_to_odometry(snap: Snapshot, stamp: Time | None = None,
+                         heading: Heading = MAP_ALIGNED,
+                         frame_id: str = 'map') -> Odometry:
+    """Brain snapshot -> nav_msgs/Odometry (REP 105).
+
+    Pose in ``frame_id``: the position estimate with its covariance (the Kalman filter's
+    P[:2, :2], thesis 3.1.4) and the heading's yaw with its variance. Twist in the child
+    frame ``agent_K/base_link``: the velocity estimate and its covariance P[2:4, 2:4]
+    rotated into the body frame (R^T v, R^T P R), the heading's rate as angular.z. The
+    robot is planar: z, roll and pitch are 0 by construction, with variance 0.
+    """
+    msg = Odometry()
+    if stamp is not None:
+        msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.child_frame_id = base_frame(snap.agent_id)
+    p = np.zeros((4, 4))
+    cov = np.asarray(snap.covariance, dtype=float)
+    if cov.size == 16:
+        p = cov.reshape(4, 4)
+    pose = msg.pose
+    pose.pose.position.x, pose.pose.position.y = (float(v) for v in snap.position[:2])
+    pose.pose.orientation = yaw_quaternion(heading.yaw)
+    pose_cov = np.zeros((6, 6))
+    pose_cov[:2, :2] = p[:2, :2]
+    pose_cov[5, 5] = heading.yaw_std ** 2
+    pose.covariance = pose_cov.reshape(-1).tolist()
+    c, s = math.cos(heading.yaw), math.sin(heading.yaw)
+    rot = np.array([[c, -s], [s, c]])          # body -> map
+    twist = msg.twist
+    twist.twist.linear.x, twist.twist.linear.y = map_to_body(
+        float(snap.velocity[0]), float(snap.velocity[1]), heading.yaw)
+    twist.twist.angular.z = float(heading.rate)
+    twist_cov = np.zeros((6, 6))
+    twist_cov[:2, :2] = rot.T @ p[2:4, 2:4] @ rot
+    twist_cov[5, 5] = heading.rate_std ** 2
+    twist.covariance = twist_cov.reshape(-1).tolist()
+    return msg
+
+
+def transform_of(stamp: Time | None, parent: str, child: str, x: float, y: float,
+                 yaw: float) -> TransformStamped:
+    """A planar pose (m, m, rad) as the TransformStamped ``parent -> child``."""
+    msg = TransformStamped()
+    if stamp is not None:
+        msg.header.stamp = stamp
+    msg.header.frame_id = parent
+    msg.child_frame_id = child
+    msg.transform.translation.x, msg.transform.translation.y = float(x), float(y)
+    msg.transform.rotation = yaw_quaternion(yaw)
+    return msg
+
+
+def snapshot_to_transform(snap: Snapshot, stamp: Time | None = None,
+                          heading: Heading = MAP_ALIGNED,
+                          frame_id: str = 'map') -> TransformStamped:
+    """Brain snapshot -> the TF ``map -> agent_K/base_link`` of its estimate."""
+    return transform_of(stamp, frame_id, base_frame(snap.agent_id), float(snap.position[0]),
+                        float(snap.position[1]), heading.yaw)

@@ -1,15 +1,17 @@
 """The bridge's logic, free of ROS and of the serial port (time is an argument).
 
-Inputs: agents' map-frame velocity setpoints, camera poses, bytes from the coordinator
-XBee. Outputs: bytes to write to it (0x10 frames carrying CmdVel / Stop), board statuses,
-counters, and events to log (each cause once, until it clears).
+Inputs: agents' body-frame velocity setpoints (``cmd_vel``, REP 103: the agent rotates
+its setpoint by the camera's yaw, swarm_agent.conversions), camera poses, bytes from the
+coordinator XBee. Outputs: bytes to write to it (0x10 frames carrying CmdVel / Stop),
+board statuses, counters, and events to log (each cause once, until it clears).
 
 Per robot, every ``poll``:
 - a fresh setpoint (younger than ``cmd_timeout``) and a fresh pose (younger than
-  ``pose_timeout``) give a CmdVel in the body frame (protocol.command_for, eqs. 5.1-5.3),
-  sent when it changes and every ``resend_period`` (the board stops by itself 500 ms
-  after the last command, SWP_CMD_TIMEOUT_MS);
-- a robot that was moving and loses either input is sent Stop once (the agent watchdog);
+  ``pose_timeout``) give the CmdVel of that body-frame setpoint (protocol.body_command,
+  eqs. 5.1-5.3), sent when it changes and every ``resend_period`` (the board stops by
+  itself 500 ms after the last command, SWP_CMD_TIMEOUT_MS);
+- a robot that was moving and loses either input is sent Stop once (the agent watchdog;
+  without a camera pose the agent's heading, so the frame of its command, is stale);
 - a board heard from neither status nor ack for ``board_timeout`` counts as silent.
 """
 
@@ -119,7 +121,7 @@ class Bridge:
 
     # -- inputs ------------------------------------------------------------------------
     def on_setpoint(self, agent_id: int, vx: float, vy: float, now: float) -> None:
-        """A map-frame velocity setpoint (m/s) of agent ``agent_id``."""
+        """A body-frame velocity setpoint (m/s, ``cmd_vel``) of agent ``agent_id``."""
         link = self.links.get(agent_id)
         if link is None:
             return
@@ -229,8 +231,7 @@ class Bridge:
             fresh_pose = now - link.pose_time <= p.pose_timeout
             if fresh_cmd and fresh_pose:
                 self._clear(f'stale{agent}', f'agent {agent}: commands resumed')
-                cmd = protocol.command_for(*link.setpoint, link.pose[2], p.max_speed,
-                                           link.seq + 1)
+                cmd = protocol.body_command(*link.setpoint, p.max_speed, link.seq + 1)
                 changed = link.sent is None or (cmd.speed, cmd.direction) != (
                     link.sent.speed, link.sent.direction)
                 if changed or now - link.sent_time >= p.resend_period:

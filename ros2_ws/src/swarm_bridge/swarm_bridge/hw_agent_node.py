@@ -15,11 +15,19 @@ measured, velocity as the camera displacement over ``velocity_window`` seconds. 
 the camera has not seen for ``pose_timeout`` seconds keeps its last estimate, LOST, with
 an uncertainty that grows as far as it can have driven since (``setpoint.v_max`` times
 the time without a pose), so its state says how little its position is known.
+
+Heading. The camera also measures each robot's yaw: it is the agent's heading
+(``AgentNode.set_heading``), the body frame of its ``cmd_vel``, ``odom`` and TF (REP
+103/105), with its rate over the same window. A robot turns while it drives (the
+omni wheels' travel does not sum to zero, eqs. 5.1-5.3), so ``cmd_vel`` goes out again
+whenever the setpoint seen from the new heading changes; the bridge sends it to the
+board as is.
 """
 
 from __future__ import annotations
 
 from collections import deque
+import math
 import sys
 
 from geometry_msgs.msg import PoseStamped
@@ -27,6 +35,7 @@ import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 
 from swarm_agent.agent_node import AgentNode, make_executor
+from swarm_agent.conversions import yaw_of
 from swarm_mission.node_runner import run_node
 
 PARAMETERS = {
@@ -50,7 +59,7 @@ class HwAgentNode(AgentNode):
                                  f'got {value}: e.g. -p {name}:={PARAMETERS[name][0]}')
         self._window = p['velocity_window']
         self._pose_timeout = p['pose_timeout']
-        self._poses: deque[tuple[float, float, float]] = deque()
+        self._poses: deque[tuple[float, float, float, float]] = deque()  # t, x, y, yaw
         self._stale = False
         self.create_timer(0.1, self._check_pose_age)
         config = self.brain.config
@@ -68,13 +77,17 @@ class HwAgentNode(AgentNode):
         x, y = msg.pose.position.x, msg.pose.position.y
         if not (np.isfinite(x) and np.isfinite(y)):
             return
-        self._poses.append((t, x, y))
+        yaw = yaw_of(msg.pose.orientation)
+        self._poses.append((t, x, y, yaw))
         while len(self._poses) > 2 and t - self._poses[1][0] >= self._window:
             self._poses.popleft()
-        t0, x0, y0 = self._poses[0]
-        velocity = (np.array([x - x0, y - y0]) / (t - t0)) if t - t0 > 1e-3 else np.zeros(2)
+        t0, x0, y0, yaw0 = self._poses[0]
+        dt = t - t0
+        velocity = (np.array([x - x0, y - y0]) / dt) if dt > 1e-3 else np.zeros(2)
         std = self.params['external_pose_std']
         self.brain.localizer.set_state((x, y), velocity, std, 2 * std / self._window)
+        rate = math.remainder(yaw - yaw0, math.tau) / dt if dt > 1e-3 else 0.0
+        self.set_heading(yaw, rate, 2 * self.params['external_heading_std'] / self._window)
         if self._stale:
             self._stale = False
             self.get_logger().info('camera pose back')

@@ -252,13 +252,20 @@ def mix_fixed(speed: int, direction: int) -> tuple[tuple[int, int, int], bool]:
     return (rates[0], rates[1], rates[2]), clipped
 
 
-def command_for(vx_map: float, vy_map: float, yaw: float, max_speed: float,
-                seq: int) -> CmdVel:
-    """Turn a map-frame velocity setpoint into the CmdVel for a robot heading ``yaw``.
+def body_command(vx_body: float, vy_body: float, max_speed: float, seq: int) -> CmdVel:
+    """Turn a body-frame velocity (m/s, x forward, y left: REP 103, as ``cmd_vel``) into
+    the CmdVel of eqs. 5.1-5.3.
 
     The speed is limited to ``max_speed`` (m/s) keeping the direction, so that no wheel
     of eqs. 5.1-5.3 exceeds its step rate when max_speed <= MAX_WHEEL_SPEED_M_S.
     """
-    speed, alpha = body_to_polar(*map_to_body(vx_map, vy_map, yaw))
+    speed, alpha = body_to_polar(vx_body, vy_body)
     units, direction = quantize(min(speed, max_speed), alpha)
     return CmdVel(seq & 0xFF, units, direction)
+
+
+def command_for(vx_map: float, vy_map: float, yaw: float, max_speed: float,
+                seq: int) -> CmdVel:
+    """Turn a map-frame velocity into the CmdVel for a robot heading ``yaw``
+    (``body_command`` of the velocity rotated into the body frame)."""
+    return body_command(*map_to_body(vx_map, vy_map, yaw), max_speed, seq)

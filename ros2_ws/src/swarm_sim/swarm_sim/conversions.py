@@ -2,7 +2,10 @@
 
 Pure functions from ``swarm_sim.world_model`` outputs to messages: per-robot IMU, GPS,
 TOA ranges, proximity scans and radio deliveries, the same in one ``SensorBatch`` for
-composed agents, and the ground truth. Stamps are ``builtin_interfaces/Time``.
+composed agents, and the ground truth (swarm_msgs/SwarmTruth, and as TF under its own
+frame prefix: ``map -> truth/agent_K/base_link``, beside the agents' estimates ``map ->
+agent_K/base_link``, so that tools show both and never mistake one for the other).
+Stamps are ``builtin_interfaces/Time``.
 """
 
 from __future__ import annotations
@@ -13,8 +16,15 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseWithCovarianceStamped
 import numpy as np
 from sensor_msgs.msg import Imu
+from tf2_msgs.msg import TFMessage
 
-from swarm_agent.conversions import frames_to_msg, proximity_to_msg, sensor_batch_to_msg
+from swarm_agent.conversions import (
+    base_frame,
+    frames_to_msg,
+    proximity_to_msg,
+    sensor_batch_to_msg,
+    transform_of,
+)
 from swarm_msgs.msg import (
     AgentTruth,
     ForceBatch,
@@ -82,6 +92,22 @@ def truth_msg(stamp: Time, fleet, truth: TruthSample) -> SwarmTruth:
         velocity=[float(vel[i, 0]), float(vel[i, 1])], yaw=float(truth.yaws[i]))
         for i, r in enumerate(fleet)]
     return msg
+
+
+TRUTH_PREFIX = 'truth'
+
+
+def truth_tf(stamp: Time, fleet, truth: TruthSample, prefix: str = TRUTH_PREFIX
+             ) -> TFMessage:
+    """The living robots' true poses as TF ``map -> <prefix>/agent_K/base_link``: true
+    position and the body's true yaw (0 for point masses; a pybullet body's own heading,
+    which the agents' map-aligned estimate frames do not track: their brains need none,
+    see swarm_agent.conversions)."""
+    pos = truth.positions
+    return TFMessage(transforms=[
+        transform_of(stamp, 'map', f'{prefix}/{base_frame(r.id)}', pos[i, 0], pos[i, 1],
+                     float(truth.yaws[i]))
+        for i, r in enumerate(fleet) if truth.alive[i]])
 
 
 def robot_messages(readings: Readings, ids: list[int], imu_std: float, proximity_std: float

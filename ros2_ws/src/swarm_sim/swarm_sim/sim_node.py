@@ -1,11 +1,11 @@
 """sim_node: the simulated world of the swarm (replaces the thesis's Gazebo, 4.1).
 
-ROS wiring around the world model (``swarm_sim.world_model.World``, which the headless
-evaluator runs too): parameters (``swarm_sim.sim_parameters``), commands and faults in,
-readings out as messages (``swarm_sim.conversions``), ``/clock``. Steps are paced by
-``swarm_sim.pacing`` (``real_time_factor``, ``max_agent_lag_s`` behind the slowest
-agent); as fast as possible, the world steps once every agent has answered the current
-time (a guard condition, after the callbacks of its wait), else at ``clock_rate_hz``.
+ROS wiring of the world model (``swarm_sim.world_model.World``, as the headless evaluator
+runs it): parameters (``swarm_sim.sim_parameters``), commands and faults in, readings out
+as messages (``swarm_sim.conversions``), ``/clock``. Paced by ``swarm_sim.pacing``
+(``real_time_factor``, ``max_agent_lag_s`` behind the slowest agent); as fast as
+possible, it steps once every agent has answered the current time (a guard condition,
+after the callbacks of its wait), else at ``clock_rate_hz``.
 
 Topics (K: a robot id; per-robot topics have no default QoS event handlers,
 ``swarm_agent.lean_endpoints``: with them 50 robots made a wait set of 750 entities)
@@ -15,19 +15,19 @@ Topics (K: a robot id; per-robot topics have no default QoS event handlers,
              neighbours); ``/agent_K/proximity`` (swarm_msgs/ProximityArray, neighbours
              within ``proximity_range_m``); ``/agent_K/radio/rx`` (swarm_msgs/
              RadioPacketArray, the medium's deliveries since the last batch);
-             ``/swarm/sensor_batch`` (swarm_msgs/SensorBatch: with ``sensor_batch``, all
-             robots' imu, ranges, proximity and rx of a step in one message, in place of
-             those four topics; for composed agents); ``/swarm/truth`` (swarm_msgs/
-             SwarmTruth, for metrics only); ``/swarm/markers`` (visualization_msgs/
-             MarkerArray by ``swarm_sim.markers``, ``marker_rate_hz``, 0 turns it off)
+             ``/swarm/sensor_batch`` (swarm_msgs/SensorBatch, with ``sensor_batch``: those
+             four topics of every robot in one message per step, for composed agents);
+             ``/swarm/truth`` (swarm_msgs/SwarmTruth, metrics only) and ``/tf`` (the
+             truth as ``map -> truth/agent_K/base_link``); ``/swarm/markers``
+             (visualization_msgs/MarkerArray, ``marker_rate_hz``, 0 turns it off)
   subscribed ``/agent_K/cmd_force`` (geometry_msgs/WrenchStamped, N, map frame) or, with
              ``sensor_batch``, ``/swarm/cmd_batch`` (swarm_msgs/ForceBatch);
              ``/radio/tx`` (swarm_msgs/RadioPacketArray, the agents' batches);
              ``/agent_K/state``, ``/swarm/goals``, ``/swarm/shape`` (markers only)
   faults     ``/swarm/kill``, ``/swarm/radio_off``, ``/swarm/radio_on`` (std_msgs/
              Int32MultiArray of robot ids), ``/swarm/move_obstacle`` (std_msgs/
-             Float64MultiArray ``[k, dx, dy]``), as ``World.inject`` applies them; the
-             run-time parameters ``loss``, ``radio_range_m``, ``radio_wall_speed_mps``
+             Float64MultiArray ``[k, dx, dy]``), as ``World.inject`` applies them; run-time
+             parameters ``loss``, ``radio_range_m``, ``radio_wall_speed_mps``
              (``World.apply_setting``; a bad value is refused with the reason).
 """
 
@@ -46,6 +46,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, Int32MultiArray
+from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
 from swarm_agent.conversions import frames_or_log, stamp_seconds
@@ -98,6 +99,7 @@ class SimNode(Node):
             QoSProfile(**q) for q in (qos.SENSOR, qos.RADIO, qos.STATE, qos.IMU, qos.COMMAND))
         self.clock_pub = self.create_publisher(Clock, '/clock', 10)
         self.truth_pub = self.create_publisher(SwarmTruth, '/swarm/truth', state)
+        self.tf_pub = self.create_publisher(TFMessage, '/tf', state)   # reliable, as tf2's
         self.marker_pub = self.create_publisher(MarkerArray, '/swarm/markers', state)
         # What the markers show beyond the world: modes, goals and the shape, heard only
         # when markers are on (a state subscription per robot costs callbacks).
@@ -132,8 +134,7 @@ class SimNode(Node):
             # Composed agents answer in kind: every command of a step in one ForceBatch.
             self.create_subscription(ForceBatch, '/swarm/cmd_batch', self._on_force_batch,
                                      QoSProfile(**qos.COMMAND_BATCH))
-        self._tx_sub = self.create_subscription(RadioPacketArray, '/radio/tx', self._on_tx,
-                                                radio)
+        self._tx_sub = self.create_subscription(RadioPacketArray, '/radio/tx', self._on_tx, radio)
         for fault in ('kill', 'radio_off', 'radio_on', 'move_obstacle'):
             self.create_subscription(
                 Float64MultiArray if fault == 'move_obstacle' else Int32MultiArray,
@@ -166,12 +167,11 @@ class SimNode(Node):
                 'rejected a non-finite force command; holding the last valid one'
                 if i in refused else f'force clamped to {self.params["max_force"]} N'))
         now = time.monotonic()
-        for i, stamp in zip(rows, stamps):
-            if i not in refused:
-                self.pacer.heard(i, stamp, now)
-        # Through the guard condition, so the step runs after the callbacks of this wait:
-        # a radio batch sent with the commands must be on the air before the step
-        # delivers (else a flood's hops are delivered a tick late each).
+        for i, stamp in ((i, s) for i, s in zip(rows, stamps) if i not in refused):
+            self.pacer.heard(i, stamp, now)
+        # Through the guard condition, so the step runs after the callbacks of this wait: a
+        # radio batch sent with the commands is on the air before the step delivers (else
+        # a flood's hops are delivered a tick late each).
         if self._observed and self.pacer.all_answered(self.world.t, self.world.alive, now):
             self._step_now.trigger()
 
@@ -246,14 +246,14 @@ class SimNode(Node):
         self._publish_clock(t)
         imu_std, prox_std = world.imu.noise_std, p['proximity_std']
         if self.batch_pub is not None:
-            batch = conv.sensor_batch(readings, self.ids, imu_std, prox_std)
-            if batch is not None:
+            if (batch := conv.sensor_batch(readings, self.ids, imu_std, prox_std)) is not None:
                 self.batch_pub.publish(batch)
             readings.rx = readings.imu = readings.ranges = readings.proximity = None
         for kind, agent, msg in conv.robot_messages(readings, self.ids, imu_std, prox_std):
             self.pubs[kind, agent].publish(msg)
         if readings.truth is not None:
             self.truth_pub.publish(conv.truth_msg(conv.stamp_of(t), self.fleet, readings.truth))
+            self.tf_pub.publish(conv.truth_tf(conv.stamp_of(t), self.fleet, readings.truth))
             if self._record is not None:
                 self._record.add(readings.truth)
         if p['marker_rate_hz'] > 0 and t + 1e-9 >= self._next_marker:
