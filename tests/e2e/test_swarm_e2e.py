@@ -50,7 +50,21 @@ def test_twelve_agents_form_the_shape_through_ros_processes(processes, tmp_path)
     assert m['assignment_agreement'] >= 0.95
     # final_modes_normal is reported, not asserted: an agent that misses one localization
     # tick (fewer than three beacons heard) is LOST for three seconds while settled.
-    assert m['truth_subscribers'] == ['/swarm_monitor'], m['truth_subscribers']
+    # Only the observers listen to ground truth: the monitor and the bag's recorder.
+    assert m['truth_subscribers'] == ['/recorder', '/swarm_monitor'], m['truth_subscribers']
+    # The run's bag (OUT/run.mcap) holds every agent's state, in sim time.
+    from swarm_bringup.bag import read_raw
+
+    counts: dict[str, int] = {}
+    last = 0
+    for channel, schema, message in read_raw(tmp_path / 'run' / 'run.mcap'):
+        counts[channel.topic] = counts.get(channel.topic, 0) + 1
+        if channel.topic == '/agent_0/state':
+            assert schema.name == 'swarm_msgs/msg/AgentState'
+            last = max(last, message.log_time)
+    assert all(counts.get(f'/agent_{k}/state', 0) > 0 for k in range(12)), counts
+    assert counts.get('/swarm/goals', 0) >= 1 and counts.get('/swarm/truth', 0) > 0, counts
+    assert 0 < last / 1e9 <= 400.0   # sim seconds, within --duration
     # min_separation_ratio is reported, not asserted: avoidance acts on neighbours'
     # estimated positions (about a metre off), see README known limits.
 

@@ -115,3 +115,52 @@ def test_a_bad_parameter_is_one_line_and_exit_2(args, names):
     assert 'Traceback' not in proc.stderr + proc.stdout
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and names in lines[0], proc.stderr
+
+
+@pytest.mark.parametrize('stop', ['SIGINT', 'SIGKILL'])
+def test_a_stopped_recorder_leaves_a_readable_bag(processes, tmp_path: pathlib.Path, stop):
+    """Ctrl-C (the launcher's stop) closes the bag with its summary; a SIGKILLed
+    recorder leaves what it flushed (every wall second) readable."""
+    import signal
+
+    from mcap.reader import make_reader
+
+    bag = tmp_path / 'run.mcap'
+    proc = processes.python('-m', 'swarm_bringup.recorder_node', '--ros-args',
+                            '-p', f'output:={bag}', '-p', 'topics:=[/agent_0/state]',
+                            '-p', 'discovery_period_s:=0.2',
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    with ros_context() as (context, executor):
+        pub = rclpy.create_node('publisher', context=context)
+        state_pub = pub.create_publisher(AgentState, '/agent_0/state', QoSProfile(**qos.STATE))
+        executor.add_node(pub)
+        try:
+            # Until the recorder listens, then 3 s more (three flushes) at 20 Hz.
+            assert spin_until(executor, lambda: state_pub.get_subscription_count() > 0,
+                              timeout=30.0)
+            sent = 0
+
+            def publish() -> bool:
+                nonlocal sent
+                if sent < 60:
+                    state_pub.publish(_state(sent))
+                    sent += 1
+                return sent >= 60
+
+            spin_until(executor, publish, timeout=60.0, step=0.05)
+            # A message sent last is delivered before the signal.
+            spin_until(executor, lambda: False, timeout=0.5)
+            proc.send_signal(getattr(signal, stop))
+            output, _ = proc.communicate(timeout=30)
+        finally:
+            pub.destroy_node()
+    recorded = [msg.assigned_goal for topic, _, _, msg in read_messages(bag)]
+    if stop == 'SIGINT':
+        assert proc.returncode == 0 and 'Traceback' not in output, output
+        assert recorded == list(range(60))   # reliable, depth 10: none lost on localhost
+        with open(bag, 'rb') as f:
+            assert make_reader(f).get_summary().statistics.message_count == 60
+    else:
+        # The chunks flushed by the last full wall second: at least the first 20 (1 s at
+        # 20 Hz), in order, and nothing made up.
+        assert len(recorded) >= 20 and recorded == list(range(len(recorded))), recorded

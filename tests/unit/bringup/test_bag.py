@@ -195,3 +195,24 @@ def test_bad_use_is_refused_in_one_line(tmp_path: pathlib.Path):
             bag.write('/y', b'', 0)
     with pytest.raises(BagError, match='closed'):
         bag.write('/x', b'', 0)
+
+
+def test_the_recording_qos_is_the_swarm_profile_made_compatible():
+    from swarm_bringup.bag import DEFAULT_QOS, recording_qos
+    from swarm_mission import qos
+
+    # Latched shape and goals: transient local, so the recorder gets the current ones.
+    assert recording_qos('/swarm/goals') == qos.LATCHED
+    assert recording_qos('/swarm/shape', [(qos.RELIABLE, qos.TRANSIENT_LOCAL)]) == \
+        qos.LATCHED
+    assert recording_qos('/agent_7/radio/rx') == qos.RADIO
+    assert recording_qos('/agent_7/state')['depth'] == qos.STATE['depth']
+    assert recording_qos('/state') == DEFAULT_QOS   # not a swarm topic
+    # One best-effort or volatile publisher among others: what every one can match.
+    mixed = recording_qos('/swarm/goals', [(qos.RELIABLE, qos.TRANSIENT_LOCAL),
+                                           (qos.BEST_EFFORT, qos.VOLATILE)])
+    assert (mixed['reliability'], mixed['durability']) == (qos.BEST_EFFORT, qos.VOLATILE)
+    # A reliable transient-local publisher of a topic the swarm does not know (/rosout).
+    rosout = recording_qos('/rosout', [(qos.RELIABLE, qos.TRANSIENT_LOCAL)])
+    assert (rosout['reliability'], rosout['durability']) == (qos.RELIABLE,
+                                                             qos.TRANSIENT_LOCAL)

@@ -44,10 +44,17 @@ def test_shipped_fleet_and_params_file_per_robot(tmp_path):
         'fleet_file': str(CONFIG / 'fleet.yaml'), 'params_file': str(CONFIG / 'params.yaml'),
         'mode': 'per_robot', 'record': 'true', 'viz': 'true', 'out': str(tmp_path)})
     assert fleet_file == CONFIG / 'fleet.yaml'
-    assert [s.process for s in plan][2:] == [f'agent_{k}' for k in range(8)]
+    assert [s.process for s in plan][:3] == ['recorder', 'sim', 'mission']
+    assert [s.process for s in plan][3:] == [f'agent_{k}' for k in range(8)]
     assert all(s.params_files == (str(CONFIG / 'params.yaml'),) for s in plan)
-    assert plan[0].parameters['record_dir'] == str(tmp_path)
-    assert plan[0].parameters['marker_rate_hz'] == 1.0
+    recorder, sim = plan[:2]
+    # record:=true: every topic into out/run.mcap, and the sim waits for the recorder.
+    assert recorder.parameters == {'output': str(tmp_path / 'run.mcap'),
+                                   'use_sim_time': True}
+    assert (recorder.package, recorder.executable) == ('swarm_bringup', 'recorder_node')
+    assert sim.parameters['truth_subscribers'] == 1
+    assert sim.parameters['record_dir'] == str(tmp_path)
+    assert sim.parameters['marker_rate_hz'] == 1.0
 
 
 @pytest.mark.parametrize(('given', 'message'), [

@@ -97,6 +97,28 @@ def test_world_parameters_follow_the_run():
     assert 'morph' not in plain.parameters and 'sequence_file' not in plain.parameters
 
 
+def test_a_run_with_a_bag_starts_the_recorder_first():
+    """The recorder comes before the sim, and the sim counts it among the truth
+    subscribers it waits for before t = 0 (so the bag holds the run from its start)."""
+    plan = swarm_plan(_run(bag='/r/run.mcap', truth_subscribers=1, composed=True,
+                           params_files=('/p.yaml',)), FLEET, COUNTS)
+    assert [s.process for s in plan] == ['recorder', 'sim', 'mission', 'agents']
+    recorder, sim = plan[:2]
+    assert (recorder.package, recorder.executable, recorder.name) == (
+        'swarm_bringup', 'recorder_node', 'recorder')
+    assert recorder.module == 'swarm_bringup.recorder_node'
+    assert recorder.parameters == {'output': '/r/run.mcap', 'use_sim_time': True}
+    assert recorder.params_files == ('/p.yaml',) and not recorder.fork
+    assert sim.parameters['truth_subscribers'] == 2          # the monitor and the recorder
+    assert ros_arguments(recorder) == [
+        '--ros-args', '-r', '__node:=recorder', '--params-file', '/p.yaml',
+        '-p', 'output:=/r/run.mcap', '-p', 'use_sim_time:=true']
+    # Without a bag: no recorder, and the sim waits for the monitor alone.
+    plain = swarm_plan(_run(truth_subscribers=1), FLEET, COUNTS)
+    assert 'recorder' not in [s.process for s in plain]
+    assert plain[0].parameters['truth_subscribers'] == 1
+
+
 def test_params_file_reaches_every_process():
     plan = swarm_plan(_run(params_files=('/p.yaml',)), FLEET, COUNTS)
     assert all(s.params_files == ('/p.yaml',) for s in plan)
@@ -168,7 +190,8 @@ def test_type_counts_text_is_sorted_by_type(counts):
 
 
 def test_the_launcher_plans_from_its_command_line(tmp_path):
-    """launch_swarm's flags reach the plan; the monitor holds the clock at t = 0."""
+    """launch_swarm's flags reach the plan; the monitor (and the recorder of OUT/run.mcap,
+    on by default) hold the clock at t = 0; --no-record starts no recorder."""
     from swarm_bringup.scenario import parse_args, validate
     from swarm_bringup.supervisor_node import swarm_run
 
@@ -178,11 +201,17 @@ def test_the_launcher_plans_from_its_command_line(tmp_path):
                        '--morph', 'move:1@10+5', '--out', str(tmp_path)])
     _, counts, _, fleet = validate(args)
     run = swarm_run(args, tmp_path / 'fleet.yaml', tmp_path)
-    sim, mission, agents = swarm_plan(run, fleet, counts)
-    assert sim.parameters['truth_subscribers'] == 1
+    recorder, sim, mission, agents = swarm_plan(run, fleet, counts)
+    assert recorder.parameters['output'] == str(tmp_path / 'run.mcap')
+    assert sim.parameters['truth_subscribers'] == 2
     assert sim.parameters['record_dir'] == str(tmp_path)
     assert (sim.parameters['real_time_factor'], sim.parameters['marker_rate_hz']) == (2.0, 1.0)
     assert sim.parameters['half_size'] == 15.0 and sim.parameters['sensor_batch'] is True
     assert mission.parameters['morph'] == 'move:1@10+5'
     assert agents.parameters['control_rate_hz'] == 25.0
     assert agents.parameters['type_counts'] == type_counts_text(counts)
+    args = parse_args(['--agents', '8', '--no-record', '--out', str(tmp_path)])
+    run = swarm_run(args, tmp_path / 'fleet.yaml', tmp_path)
+    assert run.bag == ''
+    assert [s.process for s in world_nodes(run)] == ['sim', 'mission']
+    assert world_nodes(run)[0].parameters['truth_subscribers'] == 1

@@ -15,6 +15,7 @@ import pathlib
 import tempfile
 
 from swarm_bringup.launch_plan import (
+    BAG_NAME,
     counts_of,
     NodeSpec,
     swarm_plan,
@@ -40,7 +41,8 @@ ARGUMENTS: tuple[tuple[str, str, str], ...] = (
     ('rtf', '1.0', 'target real-time factor of the simulator (0: as fast as possible)'),
     ('half_size', '50.0', 'workspace half width in metres (thesis: 50)'),
     ('decentralized', 'false', 'agents partition the announced shape themselves'),
-    ('record', 'false', "write the simulator's record (truth.csv, medium.json) into out"),
+    ('record', 'false', "record every topic into out/run.mcap (recorder_node) and write the "
+                        "simulator's record (truth.csv, medium.json) into out"),
     ('out', '', 'folder for the generated fleet and the record (default: a new temp folder)'),
     ('viz', 'false', 'publish /swarm/markers for RViz'),
 )
@@ -123,6 +125,7 @@ def plan_from_arguments(given: Mapping[str, str]) -> tuple[list[NodeSpec], pathl
                    composed=values['mode'] == 'composed',
                    decentralized=decentralized, real_time_factor=rtf,
                    record_dir=str(out) if record else '', half_size=half_size, markers=viz,
+                   bag=str(out / BAG_NAME) if record else '',
                    params_files=(str(pathlib.Path(params_file).resolve()),)
                    if params_file else ())
     return swarm_plan(run, fleet, counts), fleet_file

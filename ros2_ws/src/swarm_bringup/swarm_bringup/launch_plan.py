@@ -10,7 +10,9 @@ The graph (thesis 4.1, 4.3): the world (``sim_node``, owner of ``/clock``), the 
 (``mission_node``: shape, partition, goal broadcast) and the agents (thesis Ch. 3), either
 one ``agent_node`` process per robot named ``/agent_K/agent`` (the faithful deployment)
 or all of them in one ``composed_node`` process (for scale), whose nodes keep the names
-they give themselves. Pure: no ROS import.
+they give themselves. A run with a ``bag`` path starts the ``recorder_node`` first, which
+writes every topic into that MCAP bag; the sim then waits for it to hear
+``/swarm/truth`` before t = 0, so the bag starts with the run. Pure: no ROS import.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from typing import Any
 
 DEFAULT_BEACON_SHARE = 0.15   # beacons per agent when no count is given (at least 3)
 MIN_BEACONS = 3               # trilateration needs three anchors (thesis 3.2)
+BAG_NAME = 'run.mcap'         # the bag of a recorded run, in its output folder
 
 
 @dataclass(frozen=True)
@@ -69,6 +72,7 @@ class SwarmRun:
     morph: str = ''
     sequence_file: str = ''
     truth_subscribers: int = 0    # observers the sim waits for before t = 0 (the monitor)
+    bag: str = ''                 # MCAP bag of every topic (recorder_node); '': none
     params_files: tuple[str, ...] = ()
 
 
@@ -112,8 +116,17 @@ def generate_fleet(counts: Mapping[int, int], beacons: int, seed: int, half_size
                         obstacles=list(shape.obstacles))
 
 
+def recorder_nodes(run: SwarmRun) -> list[NodeSpec]:
+    """The recorder of the run's topics into ``run.bag`` (none without a bag)."""
+    if not run.bag:
+        return []
+    return [NodeSpec('swarm_bringup', 'recorder_node', 'recorder', name='recorder',
+                     parameters={'output': run.bag, 'use_sim_time': True},
+                     params_files=run.params_files)]
+
+
 def world_nodes(run: SwarmRun) -> list[NodeSpec]:
-    """The simulator and the mission node."""
+    """The recorder (when the run has a bag), the simulator and the mission node."""
     sim = {'fleet_file': run.fleet_file, 'shape': run.shape,
            'real_time_factor': float(run.real_time_factor), 'record_dir': run.record_dir,
            'gui': run.gui, 'seed': run.seed, 'half_size': run.half_size,
@@ -121,7 +134,8 @@ def world_nodes(run: SwarmRun) -> list[NodeSpec]:
            # Composed agents take every robot's imu, ranges and radio deliveries in one
            # message per step (swarm_msgs/SensorBatch).
            'sensor_batch': bool(run.composed),
-           'truth_subscribers': run.truth_subscribers}
+           # The recorder is one more truth subscriber: the sim starts once it listens.
+           'truth_subscribers': run.truth_subscribers + (1 if run.bag else 0)}
     mission = {'shape': run.shape, 'method': run.method, 'fleet_file': run.fleet_file,
                'seed': run.seed, 'remesh': run.remesh, 'decentralized': run.decentralized,
                'use_sim_time': True}
@@ -129,10 +143,11 @@ def world_nodes(run: SwarmRun) -> list[NodeSpec]:
         mission['morph'] = run.morph
     if run.sequence_file:
         mission['sequence_file'] = run.sequence_file
-    return [NodeSpec('swarm_sim', 'sim_node', 'sim', name='sim', parameters=sim,
-                     params_files=run.params_files),
-            NodeSpec('swarm_mission', 'mission_node', 'mission', name='mission',
-                     parameters=mission, params_files=run.params_files)]
+    return recorder_nodes(run) + [
+        NodeSpec('swarm_sim', 'sim_node', 'sim', name='sim', parameters=sim,
+                 params_files=run.params_files),
+        NodeSpec('swarm_mission', 'mission_node', 'mission', name='mission',
+                 parameters=mission, params_files=run.params_files)]
 
 
 def agent_nodes(run: SwarmRun, fleet: Sequence, counts: Mapping[int, int],

@@ -24,6 +24,7 @@ import importlib
 
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
+import rclpy.logging
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
@@ -126,8 +127,10 @@ class RecorderNode(Node):
         if not self.bag.closed:
             self.bag.close()
             total = sum(self.bag.counts.values())
-            self.get_logger().info(f'wrote {total} messages of {len(self.bag.counts)} '
-                                   f'topics into {self.bag.path}')
+            # Not the node's logger: after Ctrl-C its /rosout publisher is gone.
+            rclpy.logging.get_logger('recorder_node').info(
+                f'wrote {total} messages of {len(self.bag.counts)} topics into '
+                f'{self.bag.path}')
 
 
 def main(args=None) -> None:

@@ -73,6 +73,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument('--agents-only', action='store_true',
                    help='start only the --local-agents, for the world running on another '
                         'host (no sim, mission or metrics); runs until Ctrl-C')
+    p.add_argument('--no-record', dest='record', action='store_false',
+                   help='do not record the topics into OUT/run.mcap (recorded by default)')
     p.add_argument('--out', required=True)
     return p.parse_args(argv)
 

@@ -28,8 +28,10 @@ a radio-opaque wall sweeping the workspace); ``--min-duration`` keeps the run go
 
 Writes into --out: ``metrics.json`` (the keys of scripts/evaluate.py plus
 real_time_factor, max_localization_error, consensus_rounds, cpu and memory figures),
-``fleet.yaml``, ``record.npz`` (the monitor's 2 Hz record: times, true positions and
-velocities, estimated positions, modes, goal ids, assignment digests and rounds; the
+``fleet.yaml``, ``run.mcap`` (an MCAP bag of every topic, written by ``recorder_node``
+as the run goes, flushed every second; ``--no-record`` leaves it out; docs/recording.md
+says how to open it), ``record.npz`` (the monitor's 2 Hz record: times, true positions
+and velocities, estimated positions, modes, goal ids, assignment digests and rounds; the
 final goals; separation_times/separation_min: the smallest separation ratio of the sim's
 physics steps up to each truth time, from the sim's ``separation.json``; every agent's
 DSDV route table sampled every 2 s of sim time: route_times,
@@ -58,7 +60,7 @@ from typing import NoReturn
 
 import numpy as np
 
-from swarm_bringup.launch_plan import agent_nodes, SwarmRun, world_nodes
+from swarm_bringup.launch_plan import agent_nodes, BAG_NAME, SwarmRun, world_nodes
 from swarm_bringup.launcher import Children
 from swarm_bringup.scenario import LaunchError, parse_args, validate
 
@@ -79,7 +81,8 @@ def swarm_run(args: argparse.Namespace, fleet_file: pathlib.Path,
         gui=args.gui, half_size=args.half_size, markers=args.markers, remesh=args.remesh,
         morph=args.morph,
         sequence_file=str(pathlib.Path(args.sequence).resolve()) if args.sequence else '',
-        truth_subscribers=1)   # the monitor records from t = 0
+        truth_subscribers=1,   # the monitor records from t = 0
+        bag=str(out / BAG_NAME) if args.record and not args.agents_only else '')
 
 
 def _peers() -> str:
@@ -387,7 +390,8 @@ def supervise(args: argparse.Namespace, run: SwarmRun, children: Children, shape
         summary.cpu = children.cpu_seconds()
         # and once at the end of the run
         summary.peak_pss = max(summary.peak_pss, children.pss_bytes())
-        # Who listens to ground truth? Only the monitor may (agents never see truth).
+        # Who listens to ground truth? Only the observers may: the monitor and the
+        # recorder (agents never see truth).
         try:
             summary.truth_readers = sorted({
                 f'{i.node_namespace.rstrip("/")}/{i.node_name}'
