@@ -22,6 +22,7 @@ from spin import ros_context, spin_until  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
 
 from swarm_agent.agent_node import AgentNode, make_executor  # noqa: E402
+from swarm_agent.brain import BrainConfigError  # noqa: E402
 from swarm_agent.composed_node import ComposedAgents  # noqa: E402
 from swarm_agent.conversions import yaw_of, yaw_quaternion  # noqa: E402
 from swarm_bridge.hw_agent_node import HwAgentNode  # noqa: E402
@@ -138,6 +139,14 @@ def test_camera_heading_puts_cmd_vel_and_odom_in_the_robots_body_frame():
         finally:
             agent.destroy_node()
             probe.destroy_node()
+
+
+@pytest.mark.parametrize('value', [-0.1, math.nan])
+def test_a_bad_heading_std_is_refused_with_its_name(value):
+    with ros_context() as (context, _):
+        with pytest.raises(BrainConfigError, match='external_heading_std must be a finite'):
+            AgentNode('agent', namespace='/agent_1', context=context,
+                      parameter_overrides=[Parameter('external_heading_std', value=value)])
 
 
 @pytest.mark.parametrize('sensor_batch', [False, True])

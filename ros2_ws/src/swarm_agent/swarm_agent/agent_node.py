@@ -242,6 +242,10 @@ class AgentNode(Node):
                 f'parameter formation_margin_m must be a finite number >= 0 m, got '
                 f'{p["formation_margin_m"]}: set it in config/agent.yaml or with --ros-args '
                 '-p formation_margin_m:=0.6')
+        if not (math.isfinite(p['external_heading_std']) and p['external_heading_std'] >= 0.0):
+            raise BrainConfigError(
+                f'parameter external_heading_std must be a finite number >= 0 rad, got '
+                f'{p["external_heading_std"]}: e.g. --ros-args -p external_heading_std:=0.05')
         self.params = p
         self.brain = make_brain(
             agent_id=p['agent_id'], agent_type=p['agent_type'], is_beacon=p['is_beacon'],
