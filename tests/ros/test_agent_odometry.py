@@ -177,6 +177,8 @@ def test_composed_agents_each_publish_odom_and_tf(tmp_path, sensor_batch):
             assert spin_until(executor, lambda: all(odoms.values()) and all(states.values())
                               and names <= set(_frames(tfs)), 30.0, step=0.05)
             frames = _frames(tfs)
+            # one /tf message per state period for the whole process
+            assert any(names <= {t.child_frame_id for t in m.transforms} for m in tfs)
             for r in robots:
                 odom = odoms[r.id][-1]
                 assert odom.child_frame_id == f'agent_{r.id}/base_link'

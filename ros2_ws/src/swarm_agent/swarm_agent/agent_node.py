@@ -44,7 +44,13 @@ import math
 import os
 import sys
 
-from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist, WrenchStamped
+from geometry_msgs.msg import (
+    PoseStamped,
+    PoseWithCovarianceStamped,
+    TransformStamped,
+    Twist,
+    WrenchStamped,
+)
 from nav_msgs.msg import Odometry
 import numpy as np
 from rcl_interfaces.msg import (
@@ -212,6 +218,7 @@ class AgentNode(Node):
                  tx_sink: Callable[[Frames], None] | None = None,
                  own_timers: bool = True, shared_inputs: bool = False,
                  command_sink: Callable[[int, float, float, float], None] | None = None,
+                 tf_sink: Callable[[TransformStamped], None] | None = None,
                  **kwargs) -> None:
         """``tx_sink`` takes the radio frames instead of this node's own batching
         publisher (composed_node: one batch of every agent's frames per period).
@@ -224,7 +231,9 @@ class AgentNode(Node):
         ``on_proximity_scan``, ``on_radio_frames``, ``on_shape``, ``on_goals``;
         composed_node with the world's /swarm/sensor_batch). ``command_sink(agent id,
         stamp s, fx, fy)`` takes the force commands instead of the cmd_force topic
-        (composed_node: one ForceBatch per step)."""
+        (composed_node: one ForceBatch per step), ``tf_sink`` the transform of the
+        estimate instead of this node's /tf publisher (composed_node: one TFMessage of
+        every agent per state period)."""
         super().__init__(node_name, namespace=namespace, **kwargs)
         # The node's own parameters are read once, at start: read-only.
         for name, (default, text) in PARAMETERS.items():
@@ -287,7 +296,9 @@ class AgentNode(Node):
         self._odom = lean_publisher(self, Odometry, 'odom', state)
         # Reliable and volatile, as tf2's listeners subscribe; /tf is one topic for the
         # whole tree (absolute, as tf2 tools expect; the frames carry the robot's name).
-        self._tf = lean_publisher(self, TFMessage, '/tf', state)
+        self._tf = lean_publisher(self, TFMessage, '/tf', state) if tf_sink is None else None
+        self._tf_sink = tf_sink or (
+            lambda transform: self._tf.publish(TFMessage(transforms=[transform])))
         self._routes = lean_publisher(self, RouteTable, 'routes', state)
 
         if p['is_beacon']:
@@ -449,8 +460,7 @@ class AgentNode(Node):
         snap, stamp = self.brain.snapshot(), self.get_clock().now().to_msg()
         self._state.publish(snapshot_to_state(snap, stamp))
         self._odom.publish(snapshot_to_odometry(snap, stamp, self.heading))
-        self._tf.publish(TFMessage(transforms=[snapshot_to_transform(snap, stamp,
-                                                                     self.heading)]))
+        self._tf_sink(snapshot_to_transform(snap, stamp, self.heading))
 
     def publish_routes(self) -> None:
         """Publish ``routes`` (the DSDV table)."""

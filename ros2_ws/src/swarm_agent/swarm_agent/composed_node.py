@@ -32,6 +32,10 @@ process in the executor, under 10 % in the agents' callbacks):
 - The agents' radio frames leave in one batch per ``radio_tx_hz`` period, flushed in the
   control callback right after the step that produced them.
 
+Each agent still publishes its own ``state`` and ``odom`` (``agent_K/state``,
+``agent_K/odom``) at ``state_rate_hz``; the TF of their estimates (``map ->
+agent_K/base_link``) leaves in one /tf message per state period for all of them.
+
 Subscribes ``/swarm/kill`` (std_msgs/Int32MultiArray): agent ids whose nodes are
 destroyed, to emulate robots dying mid-run (self-repair experiments).
 """
@@ -40,6 +44,7 @@ from __future__ import annotations
 
 import sys
 
+from geometry_msgs.msg import TransformStamped
 from rcl_interfaces.msg import ParameterDescriptor
 import rclpy
 from rclpy.clock import ROSClock
@@ -50,6 +55,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.time_source import TimeSource
 from std_msgs.msg import Int32MultiArray
+from tf2_msgs.msg import TFMessage
 import yaml
 
 from swarm_agent.agent_node import (
@@ -141,6 +147,9 @@ class ComposedAgents(Node):
         self._cmd_batch = (self.create_publisher(ForceBatch, '/swarm/cmd_batch',
                                                  QoSProfile(**qos.COMMAND_BATCH))
                            if p['sensor_batch'] else None)
+        # Every agent's TF of one state period in one message (reliable, as tf2 listens).
+        self._transforms: list[TransformStamped] = []
+        self._tf = self.create_publisher(TFMessage, '/tf', QoSProfile(**qos.STATE))
         for robot in robots:
             agent_id = int(robot['id'])
             overrides = [
@@ -167,6 +176,7 @@ class ComposedAgents(Node):
                              tx_sink=self._radio.extend, own_timers=False,
                              shared_inputs=bool(p['sensor_batch']),
                              command_sink=(self._command if p['sensor_batch'] else None),
+                             tf_sink=self._transforms.append,
                              parameter_overrides=overrides, context=self.context,
                              start_parameter_services=False)
             if self._time_source is not None:
@@ -176,9 +186,9 @@ class ComposedAgents(Node):
                 executor.add_node(node)
         self._timer_clock = timer_clock
         self.create_timer(1.0 / p['control_rate_hz'], self._on_control, clock=timer_clock)
-        for rate, method in (('state_rate_hz', 'publish_state'),
-                             ('routes_rate_hz', 'publish_routes')):
-            self.create_timer(1.0 / p[rate], lambda m=method: self._each(m), clock=timer_clock)
+        self.create_timer(1.0 / p['state_rate_hz'], self._publish_states, clock=timer_clock)
+        self.create_timer(1.0 / p['routes_rate_hz'], lambda: self._each('publish_routes'),
+                          clock=timer_clock)
         status = next(iter(self.agents.values())).params['status_log_period_s'] \
             if self.agents else 0.0
         if status > 0:
@@ -203,6 +213,13 @@ class ComposedAgents(Node):
         """Call ``method`` of every agent node (the container's timers and topics)."""
         for node in list(self.agents.values()):
             getattr(node, method)(*args)
+
+    def _publish_states(self) -> None:
+        """Every agent's state and odom, then the TF of every estimate in one message."""
+        self._each('publish_state')
+        if self._transforms:
+            self._tf.publish(TFMessage(transforms=list(self._transforms)))
+            self._transforms.clear()
 
     def _command(self, agent_id: int, stamp: float, fx: float, fy: float) -> None:
         self._commands.append((agent_id, stamp, fx, fy))
