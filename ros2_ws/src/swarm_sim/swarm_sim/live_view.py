@@ -290,7 +290,7 @@ def status(view: SwarmView) -> dict[str, int]:
 
 STATUS_SCHEMA = {
     'type': 'object',
-    'title': 'swarm status',
+    'title': 'swarm_sim.SwarmStatus',
     'properties': {key: {'type': 'integer', 'description': text} for key, text in (
         ('agents', 'robots alive'), ('heard', 'robots whose agent state arrived'),
         ('settled', 'agents that report settled'),
