@@ -76,7 +76,8 @@ class LiveViewServer:
         except Exception as exc:  # noqa: BLE001 - the SDK raises its own error types
             text = ' '.join(str(exc).split())
             raise OSError(f'cannot serve the live view on {host}:{port}: {text}; '
-                          'pass -p port:=<a free port>') from None
+                          'pass -p port:=<a free port> '
+                          '(or -p host:=<an address of this machine>)') from None
 
     @property
     def port(self) -> int:

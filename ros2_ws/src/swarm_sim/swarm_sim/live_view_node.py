@@ -34,7 +34,17 @@ from swarm_mission.shapes import ShapeError
 from swarm_msgs.msg import AgentState, FormationShape, GoalArray, RouteTable, SwarmTruth
 from swarm_sim.fleet import load_fleet
 from swarm_sim.foxglove_view import LiveViewServer
-from swarm_sim.live_view import links_from_routes, NOT_HEARD, RobotView, SwarmView
+from swarm_sim.live_view import links_from_routes, NO_GOAL, NOT_HEARD, RobotView, SwarmView
+
+# name -> (default, description)
+PARAMETERS = {
+    'port': (8765, 'WebSocket port of the Foxglove server (0: any free port)'),
+    'host': ('127.0.0.1', 'Address to listen on (0.0.0.0: every interface)'),
+    'rate_hz': (2.0, 'Scene updates per second (wall clock)'),
+    'fleet_file': ('', "The run's fleet YAML (robot ids, types, beacons)"),
+    'agent_ids': ([0], 'Robot ids to watch when no fleet_file is given'),
+    'robot_types_file': ('', 'Robot types YAML (empty: Table 4.1)'),
+}
 
 
 class LiveViewNode(Node):
@@ -42,16 +52,9 @@ class LiveViewNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__('live_view', **kwargs)
-        for name, default, text in (
-                ('port', 8765, 'WebSocket port of the Foxglove server (0: any free port)'),
-                ('host', '127.0.0.1', 'Address to listen on (0.0.0.0: every interface)'),
-                ('rate_hz', 2.0, 'Scene updates per second (wall clock)'),
-                ('fleet_file', '', "The run's fleet YAML (robot ids, types, beacons)"),
-                ('agent_ids', [0], 'Robot ids to watch when no fleet_file is given'),
-                ('robot_types_file', '', 'Robot types YAML (empty: Table 4.1)')):
+        for name, (default, text) in PARAMETERS.items():
             self.declare_parameter(name, default, ParameterDescriptor(description=text))
-        p = {name: self.get_parameter(name).value for name in (
-            'port', 'host', 'rate_hz', 'fleet_file', 'agent_ids', 'robot_types_file')}
+        p = {name: self.get_parameter(name).value for name in PARAMETERS}
         if not p['rate_hz'] > 0.0:
             raise ValueError(f"rate_hz must be positive, got {p['rate_hz']}")
         if not 0 <= p['port'] <= 65535:
@@ -128,7 +131,7 @@ class LiveViewNode(Node):
                     estimate=tuple(s.position) if s is not None else None,
                     truth=tuple(t.position) if t is not None else None,
                     mode=int(s.mode) if s is not None else NOT_HEARD,
-                    assigned_goal=int(s.assigned_goal) if s is not None else -1,
+                    assigned_goal=int(s.assigned_goal) if s is not None else NO_GOAL,
                     settled=bool(s.settled) if s is not None else False,
                     alive=bool(t.alive) if t is not None else True))
             return SwarmView(shape=self.shape, goals=list(self.goals), robots=robots,
