@@ -151,20 +151,20 @@ def test_forces_are_limited_refused_timed_out_and_zero_for_the_removed():
     assert not world.backend.forces[-1].any()
 
 
-def test_ranges_go_to_every_living_robot_beacons_too_and_not_from_the_removed():
-    """TOA ranges (noise 0 here) to beacon neighbours within the radio range: the
-    beacons range each other; robot 3, 34 m off, hears nobody; a removed beacon is
-    ranged by nobody, before the links are refreshed too."""
+def test_ranges_go_to_the_living_non_beacons_and_not_from_the_removed():
+    """TOA ranges (noise 0 here) to beacon neighbours within the radio range: beacons
+    (0 and 1) have GPS and get none; robot 3, 34 m off, hears nobody; a removed beacon
+    is ranged by nobody, before the links are refreshed too."""
     world = _world()
     world.step()
     ranges = dict(world.sense().ranges)
-    assert ranges[0] == [(1, 6.0, 0.0)] and ranges[1] == [(0, 6.0, 0.0)]
+    assert sorted(ranges) == [2, 3]
     assert ranges[2] == [(0, 5.0, 0.0), (1, 5.0, 0.0)] and ranges[3] == []
     world.remove(1)
     for _ in range(100):
         world.step()
     ranges = dict(world.sense().ranges)
-    assert sorted(ranges) == [0, 2, 3] and ranges[2] == [(0, 5.0, 0.0)]
+    assert sorted(ranges) == [2, 3] and ranges[2] == [(0, 5.0, 0.0)]
     assert world.backend.removed == [1]
 
 

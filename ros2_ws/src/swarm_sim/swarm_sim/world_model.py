@@ -10,8 +10,9 @@
   positions every ``link_period_s`` (0.1 s; a sweeping wall moved first), the frames
   delivered up to each report, handed out in batches every ``radio_period_s``;
 - the sensors of 4.2 at their periods (``swarm_sim.sensors``): the IMU's mean
-  acceleration over its sample period, TOA ranges of every living robot to its living
-  beacon neighbours (beacons too), the beacons' GPS, the proximity scans;
+  acceleration over its sample period, TOA ranges of every living non-beacon robot to
+  its living beacon neighbours (beacons have GPS; docs/localization.md says why they do
+  not fuse ranges to each other), the beacons' GPS, the proximity scans;
 - faults: a robot removed (radio and body), its radio off and on, an obstacle moved
   (body and radio shadow), the run-time medium settings of ``RUNTIME_SETTINGS``; and
   scheduled events, each a commanded change for the settled condition;
@@ -32,7 +33,7 @@ calls the brains.
 
 The random draws of a seed come in a fixed order from one generator: the IMU biases at
 construction, then per report the medium's losses (at transmission), the IMU noise, the
-ranges (living robots in fleet order), the proximity noise and the GPS fixes (living
+ranges (living non-beacons in fleet order), the proximity noise and the GPS fixes (living
 beacons in fleet order).
 """
 
@@ -342,7 +343,7 @@ class World:
         if self._due('range'):
             beacons = [self.ids[i] for i in np.flatnonzero(alive & self.is_beacon)]
             out.ranges = [(int(i), self.medium.toa_ranges(self.ids[i], beacons))
-                          for i in out.living]
+                          for i in out.living if not self.is_beacon[i]]
         if self.proximity is not None and self._due('proximity'):
             out.proximity = self.proximity.measure(positions, self.radii, alive)
         if self._due('gps'):
