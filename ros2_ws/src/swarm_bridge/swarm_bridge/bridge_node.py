@@ -2,8 +2,8 @@
 
 Wiring (logic in bridge.Bridge, codec in xbee, messages and eqs. 5.1-5.3 in protocol):
 
-  /agent_K/cmd_vel      geometry_msgs/Twist (map frame)   -> CmdVel in the robot's body frame
-  /agent_K/pose         geometry_msgs/PoseStamped (camera) -> heading for that rotation
+  /agent_K/cmd_vel      geometry_msgs/Twist (body frame)  -> CmdVel (eqs. 5.1-5.3), as is
+  /agent_K/pose         geometry_msgs/PoseStamped (camera) -> watchdog: no pose, no motion
   /agent_K/wheel_states sensor_msgs/JointState             <- board status (wheel m/s)
   /diagnostics          diagnostic_msgs/DiagnosticArray    <- per-robot status and counters
 
