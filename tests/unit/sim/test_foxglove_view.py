@@ -65,6 +65,7 @@ def test_a_client_receives_the_channels_and_the_messages(server):
         assert status['encoding'] == 'json'
         assert json.loads(status['schema'])['properties'].keys() == \
             lv.STATUS_SCHEMA['properties'].keys()
+        assert not server.watched()          # connected, subscribed to nothing yet
         ws.send(json.dumps({'op': 'subscribe', 'subscriptions': [
             {'id': 1, 'channelId': scene['id']}, {'id': 2, 'channelId': status['id']}]}))
         got: dict[int, tuple[int, bytes]] = {}
@@ -84,6 +85,7 @@ def test_a_client_receives_the_channels_and_the_messages(server):
                     break
             if set(got) == {1, 2}:
                 break
+        assert server.watched()
     assert set(got) == {1, 2}
     assert got[1][0] == STAMP_NS and b'agent_4' in got[1][1]
     assert json.loads(got[2][1]) == lv.status(_view())

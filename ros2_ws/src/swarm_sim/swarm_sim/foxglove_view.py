@@ -84,10 +84,18 @@ class LiveViewServer:
         """The port it listens on (the one the OS chose when asked for 0)."""
         return int(self.server.port)
 
+    def watched(self) -> bool:
+        """True when a client subscribes to the scene or the status."""
+        return self.scene.has_sinks() or self.status.has_sinks()
+
     def publish(self, view: lv.SwarmView, stamp_ns: int) -> None:
-        """Send the scene and the status of ``view`` to every subscribed client."""
-        self.scene.log(to_scene_update(lv.scene_entities(view), stamp_ns), log_time=stamp_ns)
-        self.status.log(lv.status(view), log_time=stamp_ns)
+        """Send the scene and the status of ``view`` to the clients subscribed to them
+        (nothing is built for a channel nobody subscribes to)."""
+        if self.scene.has_sinks():
+            self.scene.log(to_scene_update(lv.scene_entities(view), stamp_ns),
+                           log_time=stamp_ns)
+        if self.status.has_sinks():
+            self.status.log(lv.status(view), log_time=stamp_ns)
 
     def stop(self) -> None:
         """Close the server (idempotent)."""

@@ -138,8 +138,10 @@ class LiveViewNode(Node):
                              links=links_from_routes(self.routes))
 
     def publish(self) -> None:
-        """Send the current scene and status (wall-clock time stamps)."""
-        self.server.publish(self.view(), time.time_ns())
+        """Send the current scene and status (wall-clock time stamps) to the clients
+        that subscribe to them."""
+        if self.server.watched():
+            self.server.publish(self.view(), time.time_ns())
 
     def close(self) -> None:
         """Stop the WebSocket server."""
