@@ -21,7 +21,6 @@ import sys
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, Twist
 from rcl_interfaces.msg import ParameterDescriptor
-import rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import JointState
@@ -30,6 +29,7 @@ import serial
 from swarm_bridge import protocol
 from swarm_bridge.bridge import Bridge, BridgeParams
 from swarm_bridge.fleet import load_fleet
+from swarm_mission.node_runner import run_node
 
 PARAMETERS = {
     'port': ('/dev/ttyUSB0', 'Serial port of the coordinator XBee (device or pyserial URL)'),
@@ -208,21 +208,9 @@ class BridgeNode(Node):
             self.serial = None
 
 
-def main(args: list[str] | None = None) -> int:
+def main(args: list[str] | None = None) -> None:
     """Run bridge_node until interrupted."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = BridgeNode()
-        rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        if node is not None:
-            node.shutdown()
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    run_node(BridgeNode, 'bridge_node', args, stop=BridgeNode.shutdown)
 
 
 if __name__ == '__main__':
