@@ -57,7 +57,8 @@ def _publish_swarm(probe):
             AgentTruth(id=3, type=1, alive=True, position=[1.3, 1.4]),
             AgentTruth(id=5, type=2, is_beacon=True, alive=True, position=[4.0, 0.0])]))
         pubs['state'].publish(AgentState(id=3, type=1, mode=AgentState.MODE_LOST,
-                                         position=[1.0, 1.0], assigned_goal=0))
+                                         position=[1.0, 1.0], assigned_goal=0,
+                                         goal_version=1))
         pubs['routes'].publish(RouteTable(owner=3, routes=[
             RouteEntry(destination=5, next_hop=5, hop_count=1)]))
     return again
@@ -89,6 +90,24 @@ def test_the_topics_become_the_view_a_client_receives():
             assert robots[5].is_beacon and robots[5].mode == lv.NOT_HEARD
             assert robots[5].radius == pytest.approx(0.3)                 # Table 4.1 type 2
 
+            # An assignment made for another goal list than the one shown is not drawn.
+            stale = probe.create_publisher(AgentState, '/agent_3/state',
+                                           QoSProfile(**qos.STATE))
+
+            def dropped() -> bool:
+                stale.publish(AgentState(id=3, type=1, position=[1.0, 1.0], assigned_goal=1,
+                                         goal_version=2))
+                (r3,) = [r for r in node.view().robots if r.id == 3]
+                return r3.assigned_goal == lv.NO_GOAL
+            assert spin_until(executor, dropped, timeout=30.0)
+            probe.destroy_publisher(stale)
+
+            def restored() -> bool:                  # back to the goal list shown
+                again()
+                (r3,) = [r for r in node.view().robots if r.id == 3]
+                return r3.assigned_goal == 0
+            assert spin_until(executor, restored, timeout=30.0)
+
             with websockets_client.connect(f'ws://127.0.0.1:{node.server.port}',
                                            subprotocols=['foxglove.sdk.v1'],
                                            open_timeout=10) as ws:
@@ -100,22 +119,24 @@ def test_the_topics_become_the_view_a_client_receives():
                                         if c['topic'] == lv.STATUS_TOPIC), None)
                 ws.send(json.dumps({'op': 'subscribe',
                                     'subscriptions': [{'id': 7, 'channelId': channel}]}))
+                expected = {'agents': 2, 'heard': 1, 'settled': 0, 'assigned': 1,
+                            'links': 1, 'normal': 0, 'lost': 1, 'return_home': 0}
                 status = None
 
-                def received() -> bool:
+                def received() -> bool:              # the latest status, while publishing
                     nonlocal status
-                    if status is not None:
+                    if status == expected:
                         return True
+                    again()
                     try:
                         frame = ws.recv(timeout=0.05)
                     except TimeoutError:
                         return False
                     if isinstance(frame, bytes) and struct.unpack_from('<I', frame, 1)[0] == 7:
                         status = json.loads(frame[13:])
-                    return status is not None
-                assert spin_until(executor, received, timeout=30.0)
-            assert status == {'agents': 2, 'heard': 1, 'settled': 0, 'assigned': 1,
-                              'links': 1, 'normal': 0, 'lost': 1, 'return_home': 0}
+                    return status == expected
+                spin_until(executor, received, timeout=30.0)
+            assert status == expected
         finally:
             node.close()
             node.destroy_node()

@@ -69,6 +69,7 @@ class LiveViewNode(Node):
             self.fleet = {int(a): (min(types), False) for a in p['agent_ids']}
         self.shape = None
         self.goals: list = []
+        self.goal_version = 0
         self.states: dict[int, AgentState] = {}
         self.truth: SwarmTruth | None = None
         self.routes: dict[int, list[tuple[int, int]]] = {}
@@ -99,6 +100,7 @@ class LiveViewNode(Node):
     def _on_goals(self, msg: GoalArray) -> None:
         with self.lock:
             self.goals = goals_from_msg(msg)
+            self.goal_version = int(msg.version)
 
     def _on_truth(self, msg: SwarmTruth) -> None:
         with self.lock:
@@ -131,7 +133,9 @@ class LiveViewNode(Node):
                     estimate=tuple(s.position) if s is not None else None,
                     truth=tuple(t.position) if t is not None else None,
                     mode=int(s.mode) if s is not None else NOT_HEARD,
-                    assigned_goal=int(s.assigned_goal) if s is not None else NO_GOAL,
+                    # An assignment to an older goal list would point at the wrong goal.
+                    assigned_goal=(int(s.assigned_goal) if s is not None
+                                   and s.goal_version == self.goal_version else NO_GOAL),
                     settled=bool(s.settled) if s is not None else False,
                     alive=bool(t.alive) if t is not None else True))
             return SwarmView(shape=self.shape, goals=list(self.goals), robots=robots,
