@@ -104,3 +104,29 @@ def test_sigterm_stops_the_run_like_ctrl_c(processes, tmp_path):
     assert not _wait_gone(kids)
     metrics = json.loads((out / 'metrics.json').read_text())['trials'][0]
     assert metrics['outcome'] == 'interrupted'
+
+
+def _ignore_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def test_sigint_stops_a_launcher_started_with_sigint_ignored(processes, tmp_path):
+    """A background job of a shell without job control (`launch_swarm.py ... &` in a
+    script, nohup) inherits SIGINT ignored; kill -INT must still stop the run and every
+    node, as Ctrl-C does."""
+    out = tmp_path / 'bg'
+    proc = processes.python(str(LAUNCH), '--agents', '4', '--beacons', '3', '--composed',
+                            '--shape', str(SHAPE), '--half-size', '15', '--duration', '600',
+                            '--out', str(out), stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, preexec_fn=_ignore_sigint)
+    deadline = time.monotonic() + 60.0
+    kids: set[int] = set()
+    while time.monotonic() < deadline and len(kids) < 3:   # sim, mission, agents
+        time.sleep(0.05)
+        assert proc.poll() is None, 'the launcher stopped early'
+        kids = _descendants(proc.pid)
+    os.kill(proc.pid, signal.SIGINT)
+    assert proc.wait(timeout=60) is not None, 'SIGINT ignored'
+    assert not _wait_gone(kids)
+    assert json.loads((out / 'metrics.json').read_text())['trials'][0]['outcome'] \
+        == 'interrupted'

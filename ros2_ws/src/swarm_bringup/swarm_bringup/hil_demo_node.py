@@ -40,6 +40,7 @@ import argparse
 import json
 import os
 import pathlib
+import signal
 import sys
 import threading
 import time
@@ -264,6 +265,8 @@ def _wait(ready, timeout: float, what: str, children: Children) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # Ctrl-C stops the run even when started with SIGINT ignored (supervisor_node.main).
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     args = parse_args(argv)
     out = pathlib.Path(args.out).resolve()
     out.mkdir(parents=True, exist_ok=True)

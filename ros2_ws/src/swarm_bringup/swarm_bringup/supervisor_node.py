@@ -271,6 +271,11 @@ def main(argv: list[str] | None = None) -> int:
     # SIGTERM (a supervisor, a timeout) stops the run like Ctrl-C: children stopped,
     # metrics written.
     signal.signal(signal.SIGTERM, _interrupt)
+    # Started from a background job of a shell without job control (`cmd &` in a script,
+    # nohup), a process inherits SIGINT ignored and Python then installs no handler:
+    # Ctrl-C / kill -INT would not stop the run (measured: an agents-only launcher
+    # ignored SIGINT for good). Stop on it whatever the parent did.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     out = pathlib.Path(args.out).resolve()
     try:
         shape, counts, beacons, fleet = validate(args)
