@@ -63,7 +63,7 @@ def ros_launch_argv(case: dict, config: dict, seed: int, run_dir: pathlib.Path
             '--method', config['method'], '--shape', str(config['shape']),
             '--half-size', f'{config["half_size"]:g}', '--duration', f'{config["duration"]:g}',
             '--settle-hold', f'{config["settle_hold"]:g}', '--composed', '--seed', str(seed),
-            '--out', str(run_dir)]
+            '--no-record', '--out', str(run_dir)]   # a study's runs record no bag
     try:
         _, _, _, fleet = launcher.validate(launcher.parse_args(argv))
     except launcher.LaunchError as exc:

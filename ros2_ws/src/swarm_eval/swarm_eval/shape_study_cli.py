@@ -99,7 +99,7 @@ def ros_rows(shape, kind: str, shape_file: pathlib.Path, out: pathlib.Path,
         cmd = [sys.executable, str(LAUNCHER), '--agents', str(args.ros_agents),
                '--beacons', str(args.ros_beacons), '--method', 'bubble',
                '--shape', str(shape_file), '--duration', str(args.ros_duration),
-               '--seed', str(seed), '--out', str(run_dir)]
+               '--seed', str(seed), '--no-record', '--out', str(run_dir)]   # no bag
         if mode == 'composed':
             cmd.append('--composed')
         print(f'shape_study: ROS {mode} on {shape.name} ...', flush=True)
