@@ -120,7 +120,8 @@ def test_a_swarm_split_over_two_hosts_forms_the_shape(processes, two_hosts, ros_
     assert m['fraction_inside'] == 1.0, summary
     assert m['duplicate_goal_claims_final'] == 0
     assert m['assignment_agreement'] >= 0.95, summary
-    assert m['truth_subscribers'] == ['/swarm_monitor'], m['truth_subscribers']
+    # ground truth is read by the monitor and the bag recorder, never by an agent
+    assert m['truth_subscribers'] == ['/recorder', '/swarm_monitor'], m['truth_subscribers']
     # Crossed: A's monitor heard B's agents, and B's robots (which the sim in A moves only
     # on B's force commands) started outside the shape, so they were driven into it.
     assert m['agents_heard'] == list(range(AGENTS)), m['agents_heard']
