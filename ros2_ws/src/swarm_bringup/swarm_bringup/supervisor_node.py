@@ -95,6 +95,7 @@ def start_agents(children: Children, args: argparse.Namespace, run: SwarmRun, fl
                  counts: dict[int, int]) -> None:
     """Start the agents of ``args.local_ids``: one composed process or one per agent."""
     for spec in agent_nodes(run, fleet, counts, args.local_ids):
+        _check_stop()
         children.run(spec)
 
 
@@ -110,6 +111,7 @@ def run_agents_only(children: Children, args: argparse.Namespace, run: SwarmRun,
               f'{children.log_dir}; Ctrl-C stops them', flush=True)
         while crashed is None:
             time.sleep(0.5)
+            _check_stop()
             crashed = children.crashed()
     except KeyboardInterrupt:
         pass
@@ -262,8 +264,20 @@ class Faults:
         return self.applied + unapplied
 
 
+# Set by SIGINT or SIGTERM. The KeyboardInterrupt the handler raises can land where
+# Python swallows it (measured: inside logging's at-fork handler while a child starts,
+# "Exception ignored"), so the run's loops also check this flag.
+_STOP = threading.Event()
+
+
 def _interrupt(signum, frame) -> None:
+    _STOP.set()
     raise KeyboardInterrupt
+
+
+def _check_stop() -> None:
+    if _STOP.is_set():
+        raise KeyboardInterrupt
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -275,7 +289,7 @@ def main(argv: list[str] | None = None) -> int:
     # nohup), a process inherits SIGINT ignored and Python then installs no handler:
     # Ctrl-C / kill -INT would not stop the run (measured: an agents-only launcher
     # ignored SIGINT for good). Stop on it whatever the parent did.
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGINT, _interrupt)
     out = pathlib.Path(args.out).resolve()
     try:
         shape, counts, beacons, fleet = validate(args)
@@ -302,7 +316,12 @@ def main(argv: list[str] | None = None) -> int:
     run = swarm_run(args, fleet_file, out)
     if args.agents_only:
         return run_agents_only(children, args, run, fleet, counts, domain)
-    supervise(args, run, children, shape, counts, fleet, beacons, domain, out)
+    try:
+        supervise(args, run, children, shape, counts, fleet, beacons, domain, out)
+    except KeyboardInterrupt:   # before the run's own handling began (its monitor starting)
+        children.stop_all()
+        print('launch_swarm: interrupted while starting; nothing was run', file=sys.stderr)
+        return 130
     return 0   # not reached: supervise ends the process
 
 
@@ -322,12 +341,16 @@ def supervise(args: argparse.Namespace, run: SwarmRun, children: Children, shape
     write the results and end the process (``exit_without_ros_teardown``)."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
 
     from swarm_bringup.results import RunSummary, write_results
     from swarm_sim.monitor_node import MonitorNode
 
     ids = [r.id for r in sorted(fleet, key=lambda r: r.id)]
-    rclpy.init()
+    # rclpy's own SIGINT handler would shut the monitor's context down, and a run whose
+    # KeyboardInterrupt was swallowed then watched a dead monitor for ever: the
+    # launcher handles the signals itself (_interrupt).
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     monitor = MonitorNode(ids, settle_hold_s=args.settle_hold, parameter_overrides=[
         rclpy.parameter.Parameter('use_sim_time', value=True)])
     faults = Faults(monitor, args, children)
@@ -337,14 +360,16 @@ def supervise(args: argparse.Namespace, run: SwarmRun, children: Children, shape
     executor.add_node(monitor)
     spin_thread = threading.Thread(target=executor.spin, daemon=True)
     spin_thread.start()
-    for spec in world_nodes(run):
-        children.run(spec)
     summary = RunSummary(mode='composed' if args.composed else 'per-process')
     wall0 = time.monotonic()
     pss_due = 0.0
     last_print = 0.0
     try:
-        # Inside the try: a SIGTERM while the agents start stops the run like one later.
+        # Inside the try: Ctrl-C or SIGTERM while the world and the agents start stops
+        # the run like one later (children stopped, results written).
+        for spec in world_nodes(run):
+            _check_stop()
+            children.run(spec)
         start_agents(children, args, run, fleet, counts)
         print(f'launch_swarm: {args.agents} agents ({summary.mode}), {beacons} beacons, '
               f'{args.method} on {args.shape}, domain {domain}, logs in {out / "logs"}',
@@ -354,6 +379,7 @@ def supervise(args: argparse.Namespace, run: SwarmRun, children: Children, shape
                   f'hosts {_peers()}', flush=True)
         while True:
             time.sleep(0.5)
+            _check_stop()
             status = monitor.live_status()
             summary.peak_rss = max(summary.peak_rss, children.rss_bytes())
             if time.monotonic() >= pss_due:
