@@ -40,7 +40,7 @@ def beacon_agent(context: rclpy.Context, executor: Executor):
 
     from swarm_agent.agent_node import AgentNode
 
-    agent = AgentNode('agent', namespace='/agent_5', context=context, parameter_overrides=[
+    agent = AgentNode('agent_5', context=context, parameter_overrides=[
         Parameter('agent_id', value=5), Parameter('agent_type', value=2),
         Parameter('is_beacon', value=True), Parameter('initial_x', value=-10.0),
         Parameter('initial_y', value=0.0)])

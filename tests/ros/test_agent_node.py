@@ -18,10 +18,10 @@ from spin import beacon_agent  # noqa: E402
 from swarm_agent.agent_node import AgentNode  # noqa: E402
 from swarm_agent.brain import BrainConfigError  # noqa: E402
 from swarm_agent.conversions import frames_from_msg  # noqa: E402
-from swarm_mission import qos  # noqa: E402
-from swarm_mission.conversions import goals_to_msg, shape_to_msg  # noqa: E402
-from swarm_mission.goals import Goal  # noqa: E402
-from swarm_mission.shapes import load_shape  # noqa: E402
+from swarm_common import qos  # noqa: E402
+from swarm_common.conversions import goals_to_msg, shape_to_msg  # noqa: E402
+from swarm_common.goals import Goal  # noqa: E402
+from swarm_common.shapes import load_shape  # noqa: E402
 from swarm_msgs.msg import (  # noqa: E402
     AgentState,
     FormationShape,
@@ -92,7 +92,7 @@ def test_a_rate_of_zero_is_refused_with_its_name(rate):
     rclpy.init(context=context)
     try:
         with pytest.raises(BrainConfigError, match=f'{rate} must be above 0 Hz'):
-            AgentNode('agent', namespace='/agent_1', context=context,
+            AgentNode('agent_1', context=context,
                       parameter_overrides=[Parameter(rate, value=0.0)])
     finally:
         rclpy.try_shutdown(context=context)
@@ -107,7 +107,7 @@ def test_proximity_scans_reach_the_brain_and_a_malformed_one_is_dropped():
     context = rclpy.Context()
     rclpy.init(context=context)
     executor = SingleThreadedExecutor(context=context)
-    agent = AgentNode('agent', namespace='/agent_3', context=context,
+    agent = AgentNode('agent_3', context=context,
                       parameter_overrides=[Parameter('agent_id', value=3)])
     probe = rclpy.create_node('probe', context=context)
     executor.add_node(agent)

@@ -26,12 +26,12 @@ from swarm_agent.brain import BrainConfigError  # noqa: E402
 from swarm_agent.composed_node import ComposedAgents  # noqa: E402
 from swarm_agent.conversions import yaw_of, yaw_quaternion  # noqa: E402
 from swarm_bridge.hw_agent_node import HwAgentNode  # noqa: E402
-from swarm_mission import qos  # noqa: E402
-from swarm_mission.conversions import goals_to_msg, shape_to_msg  # noqa: E402
-from swarm_mission.goals import Goal  # noqa: E402
-from swarm_mission.shapes import load_shape  # noqa: E402
+from swarm_common import qos  # noqa: E402
+from swarm_common.conversions import goals_to_msg, shape_to_msg  # noqa: E402
+from swarm_common.fleet import RobotSpec, save_fleet  # noqa: E402
+from swarm_common.goals import Goal  # noqa: E402
+from swarm_common.shapes import load_shape  # noqa: E402
 from swarm_msgs.msg import AgentState, FormationShape, GoalArray  # noqa: E402
-from swarm_sim.fleet import RobotSpec, save_fleet  # noqa: E402
 from swarm_sim.sim_node import SimNode  # noqa: E402
 
 STATE = QoSProfile(**qos.STATE)
@@ -48,7 +48,7 @@ def _frames(tf_messages) -> dict[str, object]:
 
 def test_agent_odom_and_tf_carry_its_estimate_and_covariance():
     with ros_context() as (context, executor):
-        agent = AgentNode('agent', namespace='/agent_5', context=context, parameter_overrides=[
+        agent = AgentNode('agent_5', context=context, parameter_overrides=[
             Parameter('agent_id', value=5), Parameter('agent_type', value=2),
             Parameter('is_beacon', value=True), Parameter('initial_x', value=-10.0),
             Parameter('initial_y', value=0.0), Parameter('state_rate_hz', value=10.0)])
@@ -104,7 +104,7 @@ def test_camera_heading_puts_cmd_vel_and_odom_in_the_robots_body_frame():
     """A hardware robot facing north (camera yaw +90 deg) whose goal lies east: its
     setpoint points east, which is the robot's right (-y in the body frame)."""
     with ros_context(make_executor) as (context, executor):
-        agent = HwAgentNode(node_name='agent', namespace='/agent_3', context=context,
+        agent = HwAgentNode(node_name='agent_3', context=context,
                             parameter_overrides=[
                                 Parameter('agent_id', value=3), Parameter('agent_type', value=2),
                                 Parameter('external_pose', value=True),
@@ -145,7 +145,7 @@ def test_camera_heading_puts_cmd_vel_and_odom_in_the_robots_body_frame():
 def test_a_bad_heading_std_is_refused_with_its_name(value):
     with ros_context() as (context, _):
         with pytest.raises(BrainConfigError, match='external_heading_std must be a finite'):
-            AgentNode('agent', namespace='/agent_1', context=context,
+            AgentNode('agent_1', context=context,
                       parameter_overrides=[Parameter('external_heading_std', value=value)])
 
 

@@ -19,8 +19,8 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
 from swarm_agent.agent_node import AgentNode  # noqa: E402
+from swarm_common.fleet import RobotSpec, save_fleet  # noqa: E402
 from swarm_mission.mission_node import MissionNode  # noqa: E402
-from swarm_sim.fleet import RobotSpec, save_fleet  # noqa: E402
 from swarm_sim.sim_node import SimNode  # noqa: E402
 
 SIM_SECONDS = 45.0
@@ -44,7 +44,7 @@ def test_five_agents_localize_agree_and_reach_their_goals(tmp_path):
     mission = MissionNode(context=context, parameter_overrides=[
         sim_time, Parameter('shape', value=str(shape)),
         Parameter('fleet_file', value=str(fleet_file))])
-    agents = [AgentNode('agent', namespace=f'/agent_{r.id}', context=context,
+    agents = [AgentNode(f'agent_{r.id}', context=context,
                         parameter_overrides=[
                             sim_time, Parameter('agent_id', value=r.id),
                             Parameter('agent_type', value=r.type),

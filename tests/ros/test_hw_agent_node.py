@@ -17,7 +17,7 @@ from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile  # noqa: E402
 
 from swarm_bridge.hw_agent_node import HwAgentNode  # noqa: E402
-from swarm_mission import qos  # noqa: E402
+from swarm_common import qos  # noqa: E402
 from swarm_msgs.msg import AgentState  # noqa: E402
 
 
@@ -25,7 +25,7 @@ def test_a_robot_without_camera_poses_is_lost_with_growing_uncertainty():
     context = rclpy.Context()
     rclpy.init(context=context)
     executor = SingleThreadedExecutor(context=context)
-    agent = HwAgentNode(namespace='/agent_3', context=context, parameter_overrides=[
+    agent = HwAgentNode(node_name='agent_3', context=context, parameter_overrides=[
         Parameter('agent_id', value=3), Parameter('agent_type', value=1),
         Parameter('external_pose', value=True), Parameter('initial_x', value=0.5),
         Parameter('initial_y', value=0.5), Parameter('pose_timeout', value=0.5),

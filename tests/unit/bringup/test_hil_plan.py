@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 import math
 
-from swarm_bridge.fleet import load_fleet
 from swarm_bringup import hil
 from swarm_bringup.launch_plan import ros_arguments
+from swarm_common.fleet import load_fleet
 
 
 def _args(**kw) -> argparse.Namespace:
@@ -31,7 +31,7 @@ def test_agents_tracker_bridge_and_mission():
     poses = [(0.1 * k, -0.5, math.pi / 2) for k in range(len(robots))]
     agents = hil.hw_agent_nodes(robots, poses, '1:1,2:2,3:2')
     assert [(s.executable, s.name, s.namespace) for s in agents] == [
-        ('hw_agent_node', 'agent', f'/agent_{r.agent_id}') for r in robots]
+        ('hw_agent_node', f'agent_{r.id}', None) for r in robots]
     assert agents[1].parameters['initial_x'] == 0.1
     assert agents[1].parameters['robot_types_file'] == str(
         hil.bridge_config('hw_robot_types.yaml'))

@@ -112,9 +112,9 @@ def test_main_refuses_a_bad_set_sim_in_one_line(capsys, tmp_path):
 def test_robot_and_obstacle_faults_are_parsed_and_ordered():
     args = _validate('--remove', '60:2,5', '--radio-off', '30:1', '--radio-on', '45:1',
                      '--duration', '100')
-    assert args.robot_faults == [(30.0, [1], '/swarm/radio_off'),
-                                 (45.0, [1], '/swarm/radio_on'),
-                                 (60.0, [2, 5], '/swarm/kill')]
+    assert args.robot_faults == [(30.0, [1], 'swarm/radio_off'),
+                                 (45.0, [1], 'swarm/radio_on'),
+                                 (60.0, [2, 5], 'swarm/kill')]
     assert parse_robot_fault('--radio-off', ' 10 :3', 8) == (10.0, [3])
     assert parse_move_obstacle('60:1:5,-2.5', 2) == (60.0, [1.0, 5.0, -2.5])
 

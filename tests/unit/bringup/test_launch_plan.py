@@ -10,9 +10,11 @@ import pytest
 
 from swarm_bringup.launch_plan import (
     agent_nodes,
+    checked_namespace,
     default_beacons,
     fleet_counts,
     generate_fleet,
+    NamespaceError,
     node_kwargs,
     NodeSpec,
     ros_arguments,
@@ -21,8 +23,8 @@ from swarm_bringup.launch_plan import (
     type_counts_text,
     world_nodes,
 )
-from swarm_mission.shapes import load_shape
-from swarm_sim.fleet import RobotSpec
+from swarm_common.fleet import RobotSpec
+from swarm_common.shapes import load_shape
 
 ROOT = pathlib.Path(__file__).resolve().parents[3]
 BRINGUP = ROOT / 'ros2_ws' / 'src' / 'swarm_bringup'
@@ -36,7 +38,7 @@ def _run(**kw) -> SwarmRun:
     return SwarmRun(fleet_file='/tmp/run/fleet.yaml', shape='circle_314', seed=5, **kw)
 
 
-def test_per_robot_plan_names_each_agent_in_its_namespace():
+def test_per_robot_plan_names_each_agent_after_its_robot():
     plan = swarm_plan(_run(), FLEET, COUNTS)
     assert [s.process for s in plan] == ['sim', 'mission', 'agent_0', 'agent_1', 'agent_2',
                                         'agent_3']
@@ -48,7 +50,9 @@ def test_per_robot_plan_names_each_agent_in_its_namespace():
     for robot, spec in zip(FLEET, agents):
         assert (spec.package, spec.executable, spec.module) == (
             'swarm_agent', 'agent_node', 'swarm_agent.agent_node')
-        assert (spec.name, spec.namespace, spec.fork) == ('agent', f'/agent_{robot.id}', True)
+        # Its topics are agent_K/... (relative), in the run's namespace: none here.
+        assert (spec.name, spec.namespace, spec.fork) == (f'agent_{robot.id}', None, True)
+        assert spec.remappings == ()
         p = spec.parameters
         assert (p['agent_id'], p['agent_type'], p['is_beacon']) == (
             robot.id, robot.type, robot.is_beacon)
@@ -142,7 +146,7 @@ def test_launch_ros_rendering():
     spec = swarm_plan(_run(params_files=('/p.yaml',)), FLEET, COUNTS)[2]
     kw = node_kwargs(spec)
     assert kw['package'] == 'swarm_agent' and kw['executable'] == 'agent_node'
-    assert (kw['name'], kw['namespace']) == ('agent', '/agent_0')
+    assert kw['name'] == 'agent_0' and 'namespace' not in kw
     assert kw['parameters'] == ['/p.yaml', dict(spec.parameters)]
     assert kw['remappings'] == []
     composed = node_kwargs(swarm_plan(_run(composed=True), FLEET, COUNTS)[2])
@@ -165,7 +169,7 @@ def test_fleet_generated_from_counts():
 
 
 def test_shipped_sample_fleet_is_the_generated_one():
-    from swarm_sim.fleet import load_fleet
+    from swarm_common.fleet import load_fleet
 
     shipped = load_fleet(BRINGUP / 'config' / 'fleet.yaml')
     assert shipped == generate_fleet(fleet_counts(8), 3, 0, 50.0, load_shape('circle_314'))
@@ -215,3 +219,57 @@ def test_the_launcher_plans_from_its_command_line(tmp_path):
     assert run.bag == ''
     assert [s.process for s in world_nodes(run)] == ['sim', 'mission']
     assert world_nodes(run)[0].parameters['truth_subscribers'] == 1
+
+
+def test_a_namespace_puts_every_node_of_the_run_in_it():
+    """Two swarms share a domain: every process of the plan runs in the run's namespace
+    and remaps the ROS-global /clock and /tf into it; the nodes' names stay."""
+    for composed in (False, True):
+        plan = swarm_plan(_run(namespace='swarm_a', bag='/r/run.mcap', composed=composed),
+                          FLEET, COUNTS)
+        plain = swarm_plan(_run(bag='/r/run.mcap', composed=composed), FLEET, COUNTS)
+        assert [(s.process, s.name) for s in plan] == [(s.process, s.name) for s in plain]
+        for spec in plan:
+            assert spec.namespace == '/swarm_a', spec.process
+            assert spec.remappings == (('/clock', 'clock'), ('/tf', 'tf'),
+                                       ('/tf_static', 'tf_static'))
+            args = ros_arguments(spec)
+            assert args[1:3] == ['-r', '__ns:=/swarm_a']
+            assert args[-6:] == ['-r', '/clock:=clock', '-r', '/tf:=tf',
+                                 '-r', '/tf_static:=tf_static']
+            kw = node_kwargs(spec)
+            assert kw['namespace'] == '/swarm_a'
+            assert kw['remappings'] == [('/clock', 'clock'), ('/tf', 'tf'),
+                                        ('/tf_static', 'tf_static')]
+
+
+@pytest.mark.parametrize('text, namespace', [('', ''), ('/', ''), ('swarm_a', '/swarm_a'),
+                                             ('/lab/swarm_b/', '/lab/swarm_b')])
+def test_namespaces_are_made_absolute(text, namespace):
+    assert checked_namespace(text) == namespace
+
+
+@pytest.mark.parametrize('text', ['1swarm', 'swarm-a', '/a//b', 'a b'])
+def test_a_bad_namespace_is_refused_with_the_fix(text):
+    with pytest.raises(NamespaceError, match='e.g. /swarm_a'):
+        checked_namespace(text)
+    with pytest.raises(NamespaceError):
+        swarm_plan(_run(namespace=text), FLEET, COUNTS)
+
+
+def test_the_launcher_and_the_launch_file_take_the_namespace(tmp_path):
+    from swarm_bringup.launch_arguments import plan_from_arguments
+    from swarm_bringup.scenario import LaunchError, parse_args, validate
+    from swarm_bringup.supervisor_node import swarm_run
+
+    args = parse_args(['--agents', '4', '--namespace', 'swarm_b', '--out', str(tmp_path)])
+    validate(args)
+    run = swarm_run(args, tmp_path / 'fleet.yaml', tmp_path)
+    assert run.namespace == '/swarm_b'
+    plan, _ = plan_from_arguments({'agents': '4', 'namespace': '/swarm_b',
+                                   'out': str(tmp_path)})
+    assert {s.namespace for s in plan} == {'/swarm_b'}
+    with pytest.raises(LaunchError, match='namespace'):
+        validate(parse_args(['--agents', '4', '--namespace', 'a-b', '--out', str(tmp_path)]))
+    with pytest.raises(LaunchError, match='namespace'):
+        plan_from_arguments({'namespace': '9a', 'out': str(tmp_path)})

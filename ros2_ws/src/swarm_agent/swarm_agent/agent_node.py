@@ -1,6 +1,10 @@
 """agent_node: one robot's brain on ROS 2 (a thin adapter around ``AgentBrain``).
 
-Topics (relative names: run each agent in its own namespace, e.g. ``agent_7``)
+Topics (relative names; the robot's own are under ``agent_K/``, K = ``agent_id``, e.g.
+``agent_7/state``: the node runs in its swarm's namespace, ``/`` or e.g. ``/swarm_a``,
+beside the swarm's other nodes, and the launch plan names it ``agent_K``. ``/tf`` is
+absolute, as tf2 expects; a swarm in a namespace remaps it and ``/clock`` into the
+namespace, swarm_bringup.launch_plan)
 
 Subscribed
   ``imu`` (sensor_msgs/Imu)                    accelerometer, map frame -> Kalman prediction
@@ -10,11 +14,11 @@ Subscribed
                                                (collision avoidance)
   ``radio/rx`` (swarm_msgs/RadioPacketArray)   what this robot's radio heard (batches)
   ``pose`` (geometry_msgs/PoseStamped)         external (camera) pose, hardware mode only
-  ``/swarm/shape`` (swarm_msgs/FormationShape) desired shape (transient local)
-  ``/swarm/goals`` (swarm_msgs/GoalArray)      goal states (transient local)
+  ``swarm/shape`` (swarm_msgs/FormationShape)  desired shape (transient local)
+  ``swarm/goals`` (swarm_msgs/GoalArray)       goal states (transient local)
 
 Published
-  ``/radio/tx`` (swarm_msgs/RadioPacketArray)  what this robot's radio sends (batches at
+  ``radio/tx`` (swarm_msgs/RadioPacketArray)   what this robot's radio sends (batches at
                                                ``radio_tx_hz``, as the medium delivers)
   ``cmd_force`` (geometry_msgs/WrenchStamped)  LQR force command, map frame (simulation)
   ``cmd_vel`` (geometry_msgs/Twist)            velocity setpoint, body frame ``agent_K/
@@ -83,14 +87,13 @@ from swarm_agent.conversions import (
     stamp_seconds,
     yaw_of,
 )
-from swarm_agent.lean_endpoints import lean_publisher, lean_subscription
 from swarm_agent.packet import Packet
 from swarm_agent.parameters import ParameterError, ParamSpec, set_live, spec_table
-from swarm_mission import qos
-from swarm_mission.conversions import goals_from_msg, shape_from_msg
-from swarm_mission.node_runner import run_node
+from swarm_common import qos
+from swarm_common.conversions import goals_from_msg, shape_from_msg
+from swarm_common.ros_support import lean_publisher, lean_subscription, run_node
+from swarm_common.shapes import ShapeError
 from swarm_mission.partition import partition, PartitionError
-from swarm_mission.shapes import ShapeError
 from swarm_msgs.msg import (
     AgentState,
     FormationShape,
@@ -282,37 +285,38 @@ class AgentNode(Node):
         # the frames are then lost in DDS and the assignment consensus breaks
         # (agreement 0.18 on the 50-agent demo).
         self._command_sink = command_sink
-        self._radio = (RadioBatcher(lean_publisher(self, RadioPacketArray, '/radio/tx', radio),
+        me = f'agent_{p["agent_id"]}/'   # this robot's topics (module docstring)
+        self._radio = (RadioBatcher(lean_publisher(self, RadioPacketArray, 'radio/tx', radio),
                                     1.0 / p['radio_tx_hz'])
                        if tx_sink is None else None)
         self._tx_sink = self._radio.extend if tx_sink is None else tx_sink
         # Per-robot topics without rclpy's default QoS event handlers: see
         # ``lean_publisher`` (they made most of a composed process's wait set).
-        self._cmd_force = (lean_publisher(self, WrenchStamped, 'cmd_force',
+        self._cmd_force = (lean_publisher(self, WrenchStamped, me + 'cmd_force',
                                           QoSProfile(**qos.COMMAND))
                            if command_sink is None else None)
-        self._cmd_vel = lean_publisher(self, Twist, 'cmd_vel', sensor)
-        self._state = lean_publisher(self, AgentState, 'state', state)
-        self._odom = lean_publisher(self, Odometry, 'odom', state)
+        self._cmd_vel = lean_publisher(self, Twist, me + 'cmd_vel', sensor)
+        self._state = lean_publisher(self, AgentState, me + 'state', state)
+        self._odom = lean_publisher(self, Odometry, me + 'odom', state)
         # Reliable and volatile, as tf2's listeners subscribe; /tf is one topic for the
         # whole tree (absolute, as tf2 tools expect; the frames carry the robot's name).
         self._tf = lean_publisher(self, TFMessage, '/tf', state) if tf_sink is None else None
         self._tf_sink = tf_sink or (
             lambda transform: self._tf.publish(TFMessage(transforms=[transform])))
-        self._routes = lean_publisher(self, RouteTable, 'routes', state)
+        self._routes = lean_publisher(self, RouteTable, me + 'routes', state)
 
         if p['is_beacon']:
-            lean_subscription(self, PoseWithCovarianceStamped, 'gps', self._on_gps, sensor)
+            lean_subscription(self, PoseWithCovarianceStamped, me + 'gps', self._on_gps, sensor)
         if p['external_pose']:
-            lean_subscription(self, PoseStamped, 'pose', self._on_pose, sensor)
+            lean_subscription(self, PoseStamped, me + 'pose', self._on_pose, sensor)
         if not shared_inputs:
-            lean_subscription(self, Imu, 'imu', self._on_imu, QoSProfile(**qos.IMU))
-            lean_subscription(self, RangeArray, 'ranges', self.on_range_array, sensor)
-            lean_subscription(self, ProximityArray, 'proximity', self.on_proximity_array,
+            lean_subscription(self, Imu, me + 'imu', self._on_imu, QoSProfile(**qos.IMU))
+            lean_subscription(self, RangeArray, me + 'ranges', self.on_range_array, sensor)
+            lean_subscription(self, ProximityArray, me + 'proximity', self.on_proximity_array,
                               sensor)
-            lean_subscription(self, RadioPacketArray, 'radio/rx', self._on_radio, radio)
-            lean_subscription(self, FormationShape, '/swarm/shape', self.on_shape, latched)
-            lean_subscription(self, GoalArray, '/swarm/goals', self.on_goals, latched)
+            lean_subscription(self, RadioPacketArray, me + 'radio/rx', self._on_radio, radio)
+            lean_subscription(self, FormationShape, 'swarm/shape', self.on_shape, latched)
+            lean_subscription(self, GoalArray, 'swarm/goals', self.on_goals, latched)
 
         if own_timers:
             self.create_timer(1.0 / p['control_rate_hz'], self.on_control)

@@ -2,7 +2,8 @@
 
 Reads a fleet file (``robots: [{id, type, beacon, x, y}, ...]``) and creates one
 ``AgentNode`` per robot (or per robot listed in ``agent_ids``, when the swarm is split
-over several hosts), each in its own ``agent_K`` namespace with the same parameters a
+over several hosts), each named ``agent_K`` in the container's namespace (its topics
+under ``agent_K/``, agent_node) with the same parameters a
 separate ``agent_node`` process would get, all spun by one executor (the pattern of
 ros2/examples ``executors/composed.py``). Measured on 2 cores: one participant
 discovers 50 nodes in under a second where 50 processes need tens of seconds.
@@ -19,13 +20,13 @@ process in the executor, under 10 % in the agents' callbacks):
   every agent's state, one every agent's routes and one logs every agent's status line,
   instead of four timers per agent.
 - The agents have no parameter or type-description services (seven services each) and
-  their per-robot topics have no default QoS event handlers (``swarm_agent.lean_endpoints``).
+  their per-robot topics have no default QoS event handlers (``swarm_common.ros_support``).
   Their parameters are the container's (listed by ``ros2 param dump
   /agents_container``) plus the fleet file's.
 - With ``sensor_batch`` (``launch_swarm.py --composed`` sets it, with sim_node's) the
-  world sends one ``/swarm/sensor_batch`` (swarm_msgs/SensorBatch) per step, which the
+  world sends one ``swarm/sensor_batch`` (swarm_msgs/SensorBatch) per step, which the
   container hands to its agents, and the agents' commands of a control step leave in one
-  ``/swarm/cmd_batch`` (swarm_msgs/ForceBatch); shape and goals come through the
+  ``swarm/cmd_batch`` (swarm_msgs/ForceBatch); shape and goals come through the
   container too. The agents then subscribe to nothing but beacon GPS, and an agent
   with nothing to wait for is not added to the executor at all (its publishers work
   without it; 9 nodes per wait instead of 51 for the thesis scenario).
@@ -34,9 +35,11 @@ process in the executor, under 10 % in the agents' callbacks):
 
 Each agent still publishes its own ``state`` and ``odom`` (``agent_K/state``,
 ``agent_K/odom``) at ``state_rate_hz``; the TF of their estimates (``map ->
-agent_K/base_link``) leaves in one /tf message per state period for all of them.
+agent_K/base_link``) leaves in one /tf message per state period for all of them. Every
+name is relative but ``/tf`` and ``/clock`` (a swarm in a namespace remaps them,
+swarm_bringup.launch_plan); radio frames go out on ``radio/tx``.
 
-Subscribes ``/swarm/kill`` (std_msgs/Int32MultiArray): agent ids whose nodes are
+Subscribes ``swarm/kill`` (std_msgs/Int32MultiArray): agent ids whose nodes are
 destroyed, to emulate robots dying mid-run (self-repair experiments).
 """
 
@@ -69,8 +72,8 @@ from swarm_agent.agent_node import (
 from swarm_agent.brain import BrainConfigError
 from swarm_agent.conversions import sensor_batch_from_msg, stamp_seconds
 from swarm_agent.packet import PacketError
-from swarm_mission import qos
-from swarm_mission.node_runner import BAD_INPUT
+from swarm_common import qos
+from swarm_common.ros_support import BAD_INPUT
 from swarm_msgs.msg import ForceBatch, FormationShape, GoalArray, RadioPacketArray, SensorBatch
 
 SHARED = {
@@ -140,11 +143,11 @@ class ComposedAgents(Node):
             if not p[rate] > 0.0:
                 raise BrainConfigError(f'parameter {rate} must be above 0 Hz, got {p[rate]}')
         self._radio = RadioBatcher(
-            self.create_publisher(RadioPacketArray, '/radio/tx', QoSProfile(**qos.RADIO)),
+            self.create_publisher(RadioPacketArray, 'radio/tx', QoSProfile(**qos.RADIO)),
             1.0 / p['radio_tx_hz'])
         # With sensor_batch the agents' commands of a step leave in one ForceBatch.
         self._commands: list[tuple[int, float, float, float]] = []
-        self._cmd_batch = (self.create_publisher(ForceBatch, '/swarm/cmd_batch',
+        self._cmd_batch = (self.create_publisher(ForceBatch, 'swarm/cmd_batch',
                                                  QoSProfile(**qos.COMMAND_BATCH))
                            if p['sensor_batch'] else None)
         # Every agent's TF of one state period in one message (reliable, as tf2 listens).
@@ -169,10 +172,10 @@ class ComposedAgents(Node):
                 Parameter('routes_rate_hz', value=float(p['routes_rate_hz'])),
                 Parameter('start_type_description_service', value=False),
             ] + [Parameter(name, value=value) for name, value in settings.items()
-                 # only what was set on the container: a params file's /**/agent
-                 # section reaches each agent node directly
+                 # only what was set on the container: a params file's /** section
+                 # reaches each agent node directly
                  if value != BRAIN_PARAMETERS[name].default]
-            node = AgentNode('agent', namespace=f'/agent_{agent_id}',
+            node = AgentNode(f'agent_{agent_id}', namespace=self.get_namespace(),
                              tx_sink=self._radio.extend, own_timers=False,
                              shared_inputs=bool(p['sensor_batch']),
                              command_sink=(self._command if p['sensor_batch'] else None),
@@ -193,20 +196,20 @@ class ComposedAgents(Node):
             if self.agents else 0.0
         if status > 0:
             self.create_timer(status, lambda: self._each('log_status'), clock=timer_clock)
-        self.create_subscription(Int32MultiArray, '/swarm/kill', self._on_kill, 10)
+        self.create_subscription(Int32MultiArray, 'swarm/kill', self._on_kill, 10)
         if p['sensor_batch']:
             latched = QoSProfile(**qos.LATCHED)
-            self.create_subscription(SensorBatch, '/swarm/sensor_batch', self._on_batch,
+            self.create_subscription(SensorBatch, 'swarm/sensor_batch', self._on_batch,
                                      QoSProfile(**qos.RADIO))
-            self.create_subscription(FormationShape, '/swarm/shape',
+            self.create_subscription(FormationShape, 'swarm/shape',
                                      lambda m: self._each('on_shape', m), latched)
-            self.create_subscription(GoalArray, '/swarm/goals',
+            self.create_subscription(GoalArray, 'swarm/goals',
                                      lambda m: self._each('on_goals', m), latched)
         self.add_on_set_parameters_callback(
             lambda params: set_brain_parameters([a.brain for a in self.agents.values()],
                                                 params))
         self.get_logger().info(f'{len(self.agents)} agents composed in one process'
-                               + (', inputs from /swarm/sensor_batch' if p['sensor_batch']
+                               + (', inputs from swarm/sensor_batch' if p['sensor_batch']
                                   else ''))
 
     def _each(self, method: str, *args) -> None:

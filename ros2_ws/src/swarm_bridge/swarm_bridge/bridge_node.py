@@ -28,8 +28,8 @@ import serial
 
 from swarm_bridge import protocol
 from swarm_bridge.bridge import Bridge, BridgeParams
-from swarm_bridge.fleet import load_fleet
-from swarm_mission.node_runner import run_node
+from swarm_common.fleet import load_fleet
+from swarm_common.ros_support import run_node
 
 PARAMETERS = {
     'port': ('/dev/ttyUSB0', 'Serial port of the coordinator XBee (device or pyserial URL)'),
@@ -64,14 +64,14 @@ class BridgeNode(Node):
             self.declare_parameter(name, default, ParameterDescriptor(description=text))
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
         self.params = p
-        robots = load_fleet(p['fleet_file'] or None)
+        robots = load_fleet(p['fleet_file'] or None, hardware=True)
         if p['agents']:
             wanted = {int(a) for a in str(p['agents']).split(',') if a.strip()}
-            missing = wanted - {r.agent_id for r in robots}
+            missing = wanted - {r.id for r in robots}
             if missing:
                 raise ValueError(f'agents {sorted(missing)} are not in the fleet file; '
                                  'add them there or drop them from the agents parameter')
-            robots = [r for r in robots if r.agent_id in wanted]
+            robots = [r for r in robots if r.id in wanted]
         self.bridge = Bridge(robots, BridgeParams(
             max_speed=p['max_speed'], cmd_timeout=p['cmd_timeout'],
             pose_timeout=p['pose_timeout'], resend_period=p['resend_period'],
@@ -80,19 +80,19 @@ class BridgeNode(Node):
         self._wheel_pubs = {}
         sensor, state = QoSProfile(**SENSOR_QOS), QoSProfile(**STATE_QOS)
         for robot in robots:
-            k = robot.agent_id
-            self.create_subscription(Twist, f'/agent_{k}/cmd_vel',
+            k = robot.id
+            self.create_subscription(Twist, f'agent_{k}/cmd_vel',
                                      lambda m, k=k: self._on_cmd_vel(k, m), sensor)
-            self.create_subscription(PoseStamped, f'/agent_{k}/pose',
+            self.create_subscription(PoseStamped, f'agent_{k}/pose',
                                      lambda m, k=k: self._on_pose(k, m), sensor)
-            self._wheel_pubs[k] = self.create_publisher(JointState, f'/agent_{k}/wheel_states',
+            self._wheel_pubs[k] = self.create_publisher(JointState, f'agent_{k}/wheel_states',
                                                         state)
         self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', state)
         self._open()
         self.create_timer(p['poll_period'], self._on_poll)
         self.create_timer(p['reopen_period'], self._reopen)
         self.create_timer(p['status_period'], self._publish_diagnostics)
-        self.get_logger().info(f'bridging agents {[r.agent_id for r in robots]} '
+        self.get_logger().info(f'bridging agents {[r.id for r in robots]} '
                                f'on {p["port"]} at {p["baud"]} baud')
 
     def _now(self) -> float:

@@ -7,19 +7,19 @@ Stands for everything outside the software under test:
   to ``port_link`` so a launcher knows it before starting the bridge). Each board
   integrates its own half-steps into a pose (forward kinematics of eqs. 5.1-5.3);
 - the overhead E/O camera of thesis 5.1, at ``camera_rate_hz``. With ``camera: truth``
-  it publishes every robot's pose as ``/agent_K/pose`` (geometry_msgs/PoseStamped, map
+  it publishes every robot's pose as ``agent_K/pose`` (geometry_msgs/PoseStamped, map
   frame, yaw counter-clockwise), optionally with Gaussian noise (``camera_noise_m``,
   seeded). With ``camera: image`` it renders the arena from above instead
   (:mod:`swarm_bridge.camera_render`: covers, floor, corner markers, lighting gradient,
   blur, noise; ``camera_*`` parameters) and publishes the frame on
-  ``/camera/image_raw`` (sensor_msgs/Image bgr8, stamped at capture) ``camera_latency_s``
-  after its capture: camera_tracker_node turns it into ``/agent_K/pose``. Either way the
-  boards' true poses go to ``/truth/agent_K/pose`` (metrics only; no agent reads them);
-- the XBee mesh between the agents (Fig. 5.1): a frame on ``/radio/tx`` goes through
+  ``camera/image_raw`` (sensor_msgs/Image bgr8, stamped at capture) ``camera_latency_s``
+  after its capture: camera_tracker_node turns it into ``agent_K/pose``. Either way the
+  boards' true poses go to ``truth/agent_K/pose`` (metrics only; no agent reads them);
+- the XBee mesh between the agents (Fig. 5.1): a frame on ``radio/tx`` goes through
   the simulator's radio medium (``swarm_bridge.hil_mesh``: range, line of sight,
   per-receiver loss, airtime and latency, ``radio_*`` parameters whose defaults are
   ``swarm_sim.medium.MediumConfig``'s) between the boards' poses, and what arrives is
-  delivered on ``/agent_K/radio/rx`` of its destination, or of every robot that heard
+  delivered on ``agent_K/radio/rx`` of its destination, or of every robot that heard
   it when broadcast.
 
 Initial poses come from ``initial_poses`` (flat list x0,y0,yaw0,x1,... in fleet order,
@@ -46,11 +46,11 @@ from sensor_msgs.msg import Image
 from swarm_agent.conversions import frames_or_log, frames_to_msg
 from swarm_bridge.camera_render import CameraRenderer, Cover, sim_camera_config, SimCamera
 from swarm_bridge.emulator import EmulatedRadio, PtyEmulator
-from swarm_bridge.fleet import initial_poses, load_cover_colors, load_fleet
 from swarm_bridge.hil_mesh import HilMesh
 from swarm_bridge.image_msgs import image_to_msg
-from swarm_mission import qos
-from swarm_mission.node_runner import run_node
+from swarm_common import qos
+from swarm_common.fleet import initial_poses, load_cover_colors, load_fleet
+from swarm_common.ros_support import run_node
 from swarm_msgs.msg import RadioPacketArray
 from swarm_sim.medium import MediumConfig
 
@@ -88,21 +88,21 @@ class HilWorldNode(Node):
             self.declare_parameter(name, default, ParameterDescriptor(description=text))
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
         self.params = p
-        self.robots = load_fleet(p['fleet_file'] or None)
+        self.robots = load_fleet(p['fleet_file'] or None, hardware=True)
         self._mesh = None
         if p['relay_radio']:
             try:
-                self._mesh = HilMesh([r.agent_id for r in self.robots], MediumConfig(
+                self._mesh = HilMesh([r.id for r in self.robots], MediumConfig(
                     range_m=p['radio_range_m'], loss=p['radio_loss'],
                     latency_s=p['radio_latency_s']), p['radio_seed'])
             except ValueError as exc:
                 raise ValueError(f'{exc}: set radio_loss, radio_range_m and radio_latency_s '
                                  'in config/hil.yaml or with --ros-args -p') from None
         self.emulator = PtyEmulator(EmulatedRadio.for_fleet([r.address for r in self.robots]))
-        self.boards = {r.agent_id: self.emulator.radio.boards[r.address] for r in self.robots}
-        poses = initial_poses([float(v) for v in p['initial_poses']], len(self.robots))
+        self.boards = {r.id: self.emulator.radio.boards[r.address] for r in self.robots}
+        poses = initial_poses([float(v) for v in p['initial_poses']], self.robots)
         for robot, pose in zip(self.robots, poses):
-            self.boards[robot.agent_id].place(*pose)
+            self.boards[robot.id].place(*pose)
         self._link = pathlib.Path(p['port_link']) if p['port_link'] else None
         if self._link is not None:
             self._link.unlink(missing_ok=True)
@@ -115,23 +115,23 @@ class HilWorldNode(Node):
         self._pose_pubs = {}
         if p['camera'] == 'image':
             colors = load_cover_colors(p['fleet_file'] or None)
-            self._covers = {r.agent_id: (colors[r.color], r.radius) for r in self.robots}
+            self._covers = {r.id: (colors[r.color], r.radius) for r in self.robots}
             self._sim_camera = SimCamera(CameraRenderer(sim_camera_config(p)))
             self._image_pub = self.create_publisher(
-                Image, '/camera/image_raw', QoSProfile(depth=1, reliability=2, durability=2))
+                Image, 'camera/image_raw', QoSProfile(depth=1, reliability=2, durability=2))
         else:
-            self._pose_pubs = {k: self.create_publisher(PoseStamped, f'/agent_{k}/pose',
+            self._pose_pubs = {k: self.create_publisher(PoseStamped, f'agent_{k}/pose',
                                                         sensor)
                                for k in self.boards}
-        self._truth_pubs = {k: self.create_publisher(PoseStamped, f'/truth/agent_{k}/pose',
+        self._truth_pubs = {k: self.create_publisher(PoseStamped, f'truth/agent_{k}/pose',
                                                      sensor)
                             for k in self.boards}
-        self._rx_pubs = {k: self.create_publisher(RadioPacketArray, f'/agent_{k}/radio/rx',
+        self._rx_pubs = {k: self.create_publisher(RadioPacketArray, f'agent_{k}/radio/rx',
                                                   radio)
                          for k in self.boards}
         if self._mesh is not None:
             self._move_mesh()
-            self.create_subscription(RadioPacketArray, '/radio/tx', self._on_tx, radio)
+            self.create_subscription(RadioPacketArray, 'radio/tx', self._on_tx, radio)
         self.create_timer(p['pump_period'], self._pump)
         self.create_timer(1.0 / p['camera_rate_hz'], self._camera)
         self.get_logger().info(f'{len(self.robots)} emulated robots on {self.emulator.port}'
@@ -173,7 +173,7 @@ class HilWorldNode(Node):
 
     def _on_tx(self, msg: RadioPacketArray) -> None:
         now = time.monotonic()
-        for _, packet in frames_or_log(msg, self.get_logger(), '/radio/tx'):
+        for _, packet in frames_or_log(msg, self.get_logger(), 'radio/tx'):
             self._mesh.send(now, packet)
 
     def _deliver(self, now: float) -> None:

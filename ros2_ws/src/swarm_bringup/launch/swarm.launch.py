@@ -4,6 +4,9 @@
   ros2 launch swarm_bringup swarm.launch.py mode:=per_robot \\
       fleet_file:=$(ros2 pkg prefix swarm_bringup)/share/swarm_bringup/config/fleet.yaml \\
       params_file:=$(ros2 pkg prefix swarm_bringup)/share/swarm_bringup/config/params.yaml
+  # two swarms in one domain: every name under the namespace, /clock and /tf remapped
+  ros2 launch swarm_bringup swarm.launch.py namespace:=/swarm_a
+  ros2 launch swarm_bringup swarm.launch.py namespace:=/swarm_b shape:=thesis_shape_1
 
 The processes are the ones ``scripts/launch_swarm.py`` starts, from the same plan
 (swarm_bringup.launch_plan, arguments checked by swarm_bringup.launch_arguments): the

@@ -29,7 +29,7 @@ from mcap.records import Channel, Message, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
-from swarm_mission import qos
+from swarm_common import qos
 
 FLUSH_PERIOD_S = 1.0   # the most a killed recorder loses (issue 21: about a second)
 SEPARATOR = '=' * 80   # between the definitions of a ros2msg schema, as rosbag2 writes
@@ -40,8 +40,9 @@ _BOUND = re.compile(r'<=\d+$')        # string<=10
 _ARRAY = re.compile(r'\[[^\]]*\]$')   # T[], T[3], T[<=3]
 
 
-# The swarm's own profiles (swarm_mission.qos) of its topics, by full name or by the rest
-# of a per-robot name (/agent_K/...); any other topic gets DEFAULT_QOS.
+# The swarm's own profiles (swarm_common.qos) of its topics, by full name or by the rest
+# of a per-robot name (/agent_K/...), under any namespace (/swarm_a/swarm/goals); any
+# other topic gets DEFAULT_QOS.
 SWARM_QOS: dict[str, dict[str, int]] = {
     '/swarm/shape': qos.LATCHED, '/swarm/goals': qos.LATCHED,
     '/swarm/cmd_batch': qos.COMMAND_BATCH, '/swarm/sensor_batch': qos.RADIO,
@@ -55,12 +56,15 @@ DEFAULT_QOS = {'history': qos.KEEP_LAST, 'depth': 100, 'reliability': qos.RELIAB
 
 def swarm_profile(topic: str) -> dict[str, int]:
     """The swarm's profile of ``topic``: SWARM_QOS by full name, or by the rest of an
-    ``/agent_K/...`` name; DEFAULT_QOS for a topic the swarm does not define."""
-    if topic in SWARM_QOS:
-        return SWARM_QOS[topic]
+    ``/agent_K/...`` name, after any namespace; DEFAULT_QOS for a topic the swarm does not
+    define."""
     parts = topic.strip('/').split('/')
-    if len(parts) >= 2 and parts[0].startswith('agent_'):
-        return SWARM_QOS.get('/'.join(parts[1:]), DEFAULT_QOS)
+    for i in range(len(parts)):   # without the first i tokens (a namespace)
+        if (rest := '/' + '/'.join(parts[i:])) in SWARM_QOS:
+            return SWARM_QOS[rest]
+        if len(parts) - i >= 2 and parts[i].startswith('agent_') and \
+                (robot := '/'.join(parts[i + 1:])) in SWARM_QOS:
+            return SWARM_QOS[robot]
     return DEFAULT_QOS
 
 

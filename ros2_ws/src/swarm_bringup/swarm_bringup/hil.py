@@ -18,6 +18,7 @@ import pathlib
 import numpy as np
 
 from swarm_bringup.launch_plan import NodeSpec
+from swarm_common.paths import package_file
 
 DESCRIPTION = ('Hardware-in-the-loop run without hardware: the formations of thesis Figs. '
                '5.11-5.20.')
@@ -34,13 +35,8 @@ GRID_HZ = 10.0            # common time grid of the recorded camera tracks
 
 
 def bridge_config(name: str) -> pathlib.Path:
-    """A file of swarm_bridge's config/: from the installed share folder, or the source
-    tree next to this package when the workspace is not built."""
-    try:
-        from ament_index_python.packages import get_package_share_directory
-        return pathlib.Path(get_package_share_directory('swarm_bridge')) / 'config' / name
-    except (ImportError, LookupError, ValueError):
-        return pathlib.Path(__file__).resolve().parents[2] / 'swarm_bridge' / 'config' / name
+    """A file of swarm_bridge's config/ (source tree or installed share folder)."""
+    return package_file('swarm_bridge', f'config/{name}')
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -249,12 +245,13 @@ def bridge_node(port: str) -> NodeSpec:
 
 def hw_agent_nodes(robots: list, poses: list[tuple[float, float, float]],
                    type_counts: str) -> list[NodeSpec]:
-    """One hardware agent per robot, ``/agent_K/agent``, at its initial pose."""
-    return [NodeSpec('swarm_bridge', 'hw_agent_node', f'agent_{robot.agent_id}', name='agent',
-                     namespace=f'/agent_{robot.agent_id}',
+    """One hardware agent per robot, ``/agent_K`` (its topics under ``agent_K/``), at
+    its initial pose."""
+    return [NodeSpec('swarm_bridge', 'hw_agent_node', f'agent_{robot.id}',
+                     name=f'agent_{robot.id}',
                      params_files=(str(bridge_config('hw_agent.yaml')),), parameters={
-                         'agent_id': robot.agent_id, 'agent_type': robot.type,
-                         'initial_x': x, 'initial_y': y, 'seed': robot.agent_id,
+                         'agent_id': robot.id, 'agent_type': robot.type,
+                         'initial_x': x, 'initial_y': y, 'seed': robot.id,
                          'robot_types_file': str(bridge_config('hw_robot_types.yaml')),
                          'type_counts': type_counts})
             for robot, (x, y, _) in zip(robots, poses)]

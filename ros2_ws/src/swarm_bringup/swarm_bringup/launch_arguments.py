@@ -16,7 +16,9 @@ import tempfile
 
 from swarm_bringup.launch_plan import (
     BAG_NAME,
+    checked_namespace,
     counts_of,
+    NamespaceError,
     NodeSpec,
     swarm_plan,
     SwarmRun,
@@ -44,7 +46,10 @@ ARGUMENTS: tuple[tuple[str, str, str], ...] = (
     ('record', 'false', "record every topic into out/run.mcap (recorder_node) and write the "
                         "simulator's record (truth.csv, medium.json) into out"),
     ('out', '', 'folder for the generated fleet and the record (default: a new temp folder)'),
-    ('viz', 'false', 'publish /swarm/markers for RViz'),
+    ('viz', 'false', 'publish swarm/markers for RViz'),
+    ('namespace', '', 'namespace of every node (e.g. /swarm_a): swarms in different '
+                      'namespaces share a ROS domain without crosstalk; /clock and /tf are '
+                      'remapped into it'),
 )
 
 
@@ -74,7 +79,7 @@ def _flag(values: Mapping[str, str], name: str) -> bool:
 def plan_from_arguments(given: Mapping[str, str]) -> tuple[list[NodeSpec], pathlib.Path]:
     """The launch plan of the launch arguments ``given`` (defaults for the others) and the
     fleet file it uses. Raises LaunchError naming a bad argument."""
-    from swarm_sim.fleet import load_fleet, save_fleet
+    from swarm_common.fleet import load_fleet, save_fleet
 
     unknown = sorted(set(given) - {name for name, _, _ in ARGUMENTS})
     if unknown:
@@ -90,6 +95,10 @@ def plan_from_arguments(given: Mapping[str, str]) -> tuple[list[NodeSpec], pathl
         raise LaunchError(f'rtf:={rtf:g}: the real-time factor is >= 0 (0: as fast as possible)')
     decentralized, record, viz = (_flag(values, name)
                                   for name in ('decentralized', 'record', 'viz'))
+    try:
+        namespace = checked_namespace(values['namespace'])
+    except NamespaceError as exc:
+        raise LaunchError(f'namespace:={values["namespace"]!r}: {exc}') from None
     params_file = values['params_file']
     if params_file and not pathlib.Path(params_file).is_file():
         raise LaunchError(f'params_file:={params_file}: no such file; give a parameters YAML '
@@ -127,5 +136,5 @@ def plan_from_arguments(given: Mapping[str, str]) -> tuple[list[NodeSpec], pathl
                    record_dir=str(out) if record else '', half_size=half_size, markers=viz,
                    bag=str(out / BAG_NAME) if record else '',
                    params_files=(str(pathlib.Path(params_file).resolve()),)
-                   if params_file else ())
+                   if params_file else (), namespace=namespace)
     return swarm_plan(run, fleet, counts), fleet_file

@@ -8,11 +8,20 @@ command line ``scripts/launch_swarm.py`` starts (swarm_bringup.launcher), and
 
 The graph (thesis 4.1, 4.3): the world (``sim_node``, owner of ``/clock``), the mission
 (``mission_node``: shape, partition, goal broadcast) and the agents (thesis Ch. 3), either
-one ``agent_node`` process per robot named ``/agent_K/agent`` (the faithful deployment)
-or all of them in one ``composed_node`` process (for scale), whose nodes keep the names
-they give themselves. A run with a ``bag`` path starts the ``recorder_node`` first, which
-writes every topic into that MCAP bag; the sim then waits for it to hear
-``/swarm/truth`` before t = 0, so the bag starts with the run. Pure: no ROS import.
+one ``agent_node`` process per robot named ``agent_K`` (the faithful deployment) or all
+of them in one ``composed_node`` process (for scale), whose nodes keep the names they
+give themselves (``agent_K`` too). A run with a ``bag`` path starts the
+``recorder_node`` first, which writes every topic into that MCAP bag; the sim then waits
+for it to hear ``swarm/truth`` before t = 0, so the bag starts with the run. Pure: no
+ROS import.
+
+Names are relative (``agent_K/state``, ``radio/tx``, ``swarm/goals``), so a run with a
+``namespace`` puts every node of the plan in it and two swarms share one ROS domain
+without crosstalk. The ROS-global names the nodes use as ROS tools expect, ``/clock``
+(rclpy's time source) and ``/tf``, ``/tf_static`` (tf2), are remapped into the namespace
+too (``GLOBAL_REMAPPINGS``, as nav2's multi-robot bringup does for TF): each swarm has its
+own clock and TF tree, whose frame ids (``map``, ``agent_K/base_link``) stay those of a
+swarm without namespace; ``rviz2 --ros-args -r /tf:=/swarm_a/tf`` shows one of them.
 """
 
 from __future__ import annotations
@@ -24,6 +33,25 @@ from typing import Any
 DEFAULT_BEACON_SHARE = 0.15   # beacons per agent when no count is given (at least 3)
 MIN_BEACONS = 3               # trilateration needs three anchors (thesis 3.2)
 BAG_NAME = 'run.mcap'         # the bag of a recorded run, in its output folder
+# Absolute names remapped into a run's namespace (module docstring).
+GLOBAL_REMAPPINGS = (('/clock', 'clock'), ('/tf', 'tf'), ('/tf_static', 'tf_static'))
+
+
+class NamespaceError(ValueError):
+    """A namespace that is not a ROS namespace; the message names the fix."""
+
+
+def checked_namespace(text: str) -> str:
+    """``text`` as an absolute namespace (``swarm_a`` -> ``/swarm_a``; '' or ``/``: none,
+    ''), or NamespaceError."""
+    tokens = text.strip().strip('/').split('/') if text.strip().strip('/') else []
+    for token in tokens:
+        if not token or not (token[0].isalpha() or token[0] == '_') or \
+                not all(c.isascii() and (c.isalnum() or c == '_') for c in token):
+            raise NamespaceError(f'namespace {text!r} is not a ROS namespace: tokens of '
+                                 'letters, digits and _ that do not start with a digit, '
+                                 'e.g. /swarm_a')
+    return '/' + '/'.join(tokens) if tokens else ''
 
 
 @dataclass(frozen=True)
@@ -74,6 +102,14 @@ class SwarmRun:
     truth_subscribers: int = 0    # observers the sim waits for before t = 0 (the monitor)
     bag: str = ''                 # MCAP bag of every topic (recorder_node); '': none
     params_files: tuple[str, ...] = ()
+    namespace: str = ''           # every node's namespace (e.g. /swarm_a); '': none
+
+
+def scoped(run: SwarmRun) -> dict[str, Any]:
+    """The ``namespace`` and ``remappings`` of every node of ``run`` (module docstring)."""
+    namespace = checked_namespace(run.namespace)
+    return {'namespace': namespace or None,
+            'remappings': GLOBAL_REMAPPINGS if namespace else ()}
 
 
 def type_counts_text(counts: Mapping[int, int]) -> str:
@@ -98,7 +134,7 @@ def fleet_counts(agents: int, types: str = '') -> dict[int, int]:
     """Robots per type of a run of ``agents``: ``types`` ``TYPE:COUNT,...`` or, empty,
     the default composition (Table 4.1 shares). Raises RobotTypeError (a ValueError)
     naming a bad count."""
-    from swarm_mission.robot_types import default_type_counts, parse_type_counts
+    from swarm_common.robot_types import default_type_counts, parse_type_counts
 
     return parse_type_counts(types) if types else default_type_counts(agents)
 
@@ -107,10 +143,10 @@ def generate_fleet(counts: Mapping[int, int], beacons: int, seed: int, half_size
                    shape) -> list:
     """The fleet of a run given by counts: ids 0..N-1 in type order placed at random
     (seeded) in the workspace outside the shape's obstacles, beacons spread far apart
-    (swarm_sim.fleet.random_fleet; FleetError, a ValueError, names a bad count)."""
+    (swarm_common.fleet.random_fleet; FleetError, a ValueError, names a bad count)."""
     import numpy as np
 
-    from swarm_sim.fleet import random_fleet
+    from swarm_common.fleet import random_fleet
 
     return random_fleet(counts, beacons, np.random.default_rng(seed), half_size=half_size,
                         obstacles=list(shape.obstacles))
@@ -122,7 +158,7 @@ def recorder_nodes(run: SwarmRun) -> list[NodeSpec]:
         return []
     return [NodeSpec('swarm_bringup', 'recorder_node', 'recorder', name='recorder',
                      parameters={'output': run.bag, 'use_sim_time': True},
-                     params_files=run.params_files)]
+                     params_files=run.params_files, **scoped(run))]
 
 
 def world_nodes(run: SwarmRun) -> list[NodeSpec]:
@@ -145,9 +181,9 @@ def world_nodes(run: SwarmRun) -> list[NodeSpec]:
         mission['sequence_file'] = run.sequence_file
     return recorder_nodes(run) + [
         NodeSpec('swarm_sim', 'sim_node', 'sim', name='sim', parameters=sim,
-                 params_files=run.params_files),
+                 params_files=run.params_files, **scoped(run)),
         NodeSpec('swarm_mission', 'mission_node', 'mission', name='mission',
-                 parameters=mission, params_files=run.params_files)]
+                 parameters=mission, params_files=run.params_files, **scoped(run))]
 
 
 def agent_nodes(run: SwarmRun, fleet: Sequence, counts: Mapping[int, int],
@@ -168,9 +204,9 @@ def agent_nodes(run: SwarmRun, fleet: Sequence, counts: Mapping[int, int],
         if len(local) < len(all_ids):
             params['agent_ids'] = sorted(local)
         return [NodeSpec('swarm_agent', 'composed_node', 'agents', parameters=params,
-                         params_files=run.params_files)]
-    return [NodeSpec('swarm_agent', 'agent_node', f'agent_{r.id}', name='agent',
-                     namespace=f'/agent_{r.id}', fork=True, params_files=run.params_files,
+                         params_files=run.params_files, **scoped(run))]
+    return [NodeSpec('swarm_agent', 'agent_node', f'agent_{r.id}', name=f'agent_{r.id}',
+                     fork=True, params_files=run.params_files, **scoped(run),
                      parameters={
                          'agent_id': r.id, 'agent_type': r.type, 'is_beacon': r.is_beacon,
                          'initial_x': r.x, 'initial_y': r.y, 'method': run.method,

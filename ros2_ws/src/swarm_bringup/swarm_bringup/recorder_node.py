@@ -6,17 +6,18 @@
 
 Every ``discovery_period_s`` (wall time) the node looks at the graph and subscribes to
 each topic it has not yet subscribed to (all topics, or those of ``topics``, less those
-of ``exclude``) as raw CDR bytes (``raw=True``: no deserialization), with the swarm's QoS
-profile of the topic made compatible with its publishers (``bag.recording_qos``;
-transient local for the latched ``/swarm/shape`` and ``/swarm/goals``). A message's log
-and publish time is the node clock's time when it arrives: sim time under
-``use_sim_time``. The bag's open chunk is written out at least every ``flush_period_s``
-(wall time), so a killed recorder loses at most that; Ctrl-C (SIGINT) closes the bag
-with its summary. A topic carrying several types or a type without an installed
-``.msg`` is skipped with one warning. Its executor waits at most every 20 ms
-(``BatchingExecutor``): CPU time per message 0.31 ms instead of 0.60 with 12 composed
-agents (66 topics), but still 0.79 ms with 50 (223 topics; 0.83 without batching), so
-about a third of a core in ``make demo`` (docs/recording.md).
+of ``exclude``; started in a namespace, e.g. ``/swarm_a``, only the topics under it, a
+run's own when swarms share a domain) as raw CDR bytes (``raw=True``: no
+deserialization), with the swarm's QoS profile of the topic made compatible with its
+publishers (``bag.recording_qos``; transient local for the latched ``/swarm/shape`` and
+``/swarm/goals``). A message's log and publish time is the node clock's time when it
+arrives: sim time under ``use_sim_time``. The bag's open chunk is written out at least
+every ``flush_period_s`` (wall time), so a killed recorder loses at most that; Ctrl-C
+(SIGINT) closes the bag with its summary. A topic carrying several types or a type
+without an installed ``.msg`` is skipped with one warning. Its executor waits at most
+every 20 ms (``BatchingExecutor``): CPU time per message 0.31 ms instead of 0.60 with 12
+composed agents (66 topics), but still 0.79 ms with 50 (223 topics; 0.83 without
+batching), so about a third of a core in ``make demo`` (docs/recording.md).
 
 Subscribes: every recorded topic. Publishes: nothing (besides rclpy's own).
 """
@@ -35,7 +36,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 
 from swarm_bringup.bag import BagError, BagWriter, FLUSH_PERIOD_S, recording_qos
-from swarm_mission.node_runner import run_node
+from swarm_common.ros_support import run_node
 
 EXAMPLE_OUTPUT = 'results/demo/run.mcap'
 BATCH_S = 0.02   # the least wall time between two waits of the executor
@@ -98,9 +99,12 @@ class RecorderNode(Node):
                                f' into {output}')
 
     def discover(self) -> None:
-        """Subscribe to every wanted topic not yet recorded that has a publisher."""
+        """Subscribe to every wanted topic not yet recorded that has a publisher (in a
+        namespace, only the topics under it: another swarm's are not this run's)."""
+        scope = self.get_namespace().rstrip('/') + '/'
         for topic, types in self.get_topic_names_and_types():
-            if topic in self.subscriptions_by_topic or topic in self.skipped or \
+            if not topic.startswith(scope) or \
+                    topic in self.subscriptions_by_topic or topic in self.skipped or \
                     topic in self.exclude or (self.only and topic not in self.only):
                 continue
             publishers = self.get_publishers_info_by_topic(topic)

@@ -12,7 +12,12 @@ import argparse
 
 import numpy as np
 
-from swarm_bringup.launch_plan import default_beacons, fleet_counts, generate_fleet
+from swarm_bringup.launch_plan import (
+    checked_namespace,
+    default_beacons,
+    fleet_counts,
+    generate_fleet,
+)
 
 DESCRIPTION = 'Start a whole swarm through ROS 2 from one command, watch it, and report.'
 
@@ -67,6 +72,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help='sim seconds the run lasts at least, settled or not')
     p.add_argument('--control-rate', type=float, default=50.0, help='agent inner loop Hz')
     p.add_argument('--domain', type=int, default=None, help='ROS_DOMAIN_ID (default: free)')
+    p.add_argument('--namespace', default='',
+                   help='namespace of every node, e.g. /swarm_a (swarms in different '
+                        'namespaces share a domain; /clock and /tf are remapped into it)')
     p.add_argument('--local-agents', default='',
                    help='agent ids started here, e.g. 0-3 or 0,2,5-7 or none (default: all);'
                         ' the others join from hosts listed in ROS_STATIC_PEERS')
@@ -199,15 +207,19 @@ def parse_set_sim(spec: str) -> tuple[float, str, float]:
 
 def validate(args: argparse.Namespace):
     """Check everything before starting anything; return (shape, counts, beacons, fleet)."""
+    from swarm_common.robot_types import load_robot_types, RobotTypeError
+    from swarm_common.shapes import load_shape, ShapeError
     from swarm_mission.mission import Mission, MissionConfig
     from swarm_mission.partition import PartitionError
-    from swarm_mission.robot_types import load_robot_types, RobotTypeError
-    from swarm_mission.shapes import load_shape, ShapeError
 
     if args.method not in ('bubble', 'fractal', 'forces'):
         raise LaunchError(f'unknown method {args.method!r}; use bubble, fractal or forces')
     if args.agents < 1:
         raise LaunchError(f'--agents must be at least 1, got {args.agents}')
+    try:
+        args.namespace = checked_namespace(args.namespace)
+    except ValueError as exc:
+        raise LaunchError(f'--namespace: {exc}') from None
     if not 0.0 < args.control_rate < float('inf'):
         raise LaunchError(f'--control-rate must be a positive rate in Hz, got '
                           f'{args.control_rate:g}; the thesis inner loop runs at 50')
@@ -230,9 +242,9 @@ def validate(args: argparse.Namespace):
     args.sim_settings = sorted(parse_set_sim(s) for s in args.set_sim)
     check_before_end('--set-sim', [t for t, _, _ in args.sim_settings], args.duration)
     robot_faults = []
-    for flag, topic, specs in (('--remove', '/swarm/kill', args.remove),
-                               ('--radio-off', '/swarm/radio_off', args.radio_off),
-                               ('--radio-on', '/swarm/radio_on', args.radio_on)):
+    for flag, topic, specs in (('--remove', 'swarm/kill', args.remove),
+                               ('--radio-off', 'swarm/radio_off', args.radio_off),
+                               ('--radio-on', 'swarm/radio_on', args.radio_on)):
         parsed = [parse_robot_fault(flag, spec, args.agents) for spec in specs]
         check_before_end(flag, [t for t, _ in parsed], args.duration)
         robot_faults += [(t, ids, topic) for t, ids in parsed]

@@ -15,9 +15,9 @@ records truth and agent states and prints a live progress line. The run ends at
 ``--settle-hold`` seconds after the last shape change, on Ctrl-C, or when a node crashes
 (its log tail is printed). Every child is stopped, no orphans are left.
 
-Faults at given sim times: ``--remove T:IDS`` removes robots (``/swarm/kill``),
+Faults at given sim times: ``--remove T:IDS`` removes robots (``swarm/kill``),
 ``--radio-off T:IDS`` and ``--radio-on T:IDS`` silence and restore their radios,
-``--move-obstacle T:K:DX,DY`` moves obstacle K of the shape (``/swarm/move_obstacle``);
+``--move-obstacle T:K:DX,DY`` moves obstacle K of the shape (``swarm/move_obstacle``);
 each is sent at the first 0.5 s (wall) poll after sim time T, so up to half a wall
 second times the real-time factor late; ``metrics.json`` lists each under ``faults``
 with the sim time it was sent (``sent_at``).
@@ -60,15 +60,15 @@ from typing import NoReturn
 
 import numpy as np
 
-from swarm_bringup.launch_plan import agent_nodes, BAG_NAME, SwarmRun, world_nodes
+from swarm_bringup.launch_plan import agent_nodes, BAG_NAME, scoped, SwarmRun, world_nodes
 from swarm_bringup.launcher import Children
 from swarm_bringup.scenario import LaunchError, parse_args, validate
 
 PSS_PERIOD_S = 10.0    # wall seconds between samples of the children's memory (PSS)
 ROUTE_PERIOD_S = 2.0   # sim seconds between samples of the agents' route tables
 NO_ROUTE_HOPS = 255    # swarm_msgs/RouteEntry.INFINITE_HOPS
-FAULT_WORDS = {'/swarm/kill': 'removed agents', '/swarm/radio_off': 'radio off for',
-               '/swarm/radio_on': 'radio back on for'}
+FAULT_WORDS = {'swarm/kill': 'removed agents', 'swarm/radio_off': 'radio off for',
+               'swarm/radio_on': 'radio back on for'}
 
 
 def swarm_run(args: argparse.Namespace, fleet_file: pathlib.Path,
@@ -82,6 +82,7 @@ def swarm_run(args: argparse.Namespace, fleet_file: pathlib.Path,
         morph=args.morph,
         sequence_file=str(pathlib.Path(args.sequence).resolve()) if args.sequence else '',
         truth_subscribers=1,   # the monitor records from t = 0
+        namespace=args.namespace,
         bag=str(out / BAG_NAME) if args.record and not args.agents_only else '')
 
 
@@ -126,14 +127,14 @@ def run_agents_only(children: Children, args: argparse.Namespace, run: SwarmRun,
 
 
 class RouteRecorder:
-    """Keeps each agent's latest DSDV table (``/agent_K/routes``) and samples them all."""
+    """Keeps each agent's latest DSDV table (``agent_K/routes``) and samples them all."""
 
     def __init__(self, node, ids: list[int]) -> None:
         from rclpy.qos import QoSProfile
 
         from swarm_agent.conversions import stamp_seconds
-        from swarm_agent.lean_endpoints import lean_subscription
-        from swarm_mission import qos
+        from swarm_common import qos
+        from swarm_common.ros_support import lean_subscription
         from swarm_msgs.msg import RouteTable
 
         self._seconds = stamp_seconds   # imported here: the launcher loads ROS lazily
@@ -147,7 +148,7 @@ class RouteRecorder:
         self.samples: dict[str, list] = {'route_times': [], 'route_next': [],
                                          'route_hops': [], 'route_stamp': []}
         for a in self.ids:
-            lean_subscription(node, RouteTable, f'/agent_{a}/routes', self._on_routes,
+            lean_subscription(node, RouteTable, f'agent_{a}/routes', self._on_routes,
                               QoSProfile(**qos.STATE))
 
     def _on_routes(self, msg) -> None:
@@ -194,7 +195,7 @@ class Faults:
         self.settings = list(args.sim_settings)            # (t, name, value), by time
         self.pubs = {topic: monitor.create_publisher(Int32MultiArray, topic, 10)
                      for topic in FAULT_WORDS}
-        self.move_pub = monitor.create_publisher(Float64MultiArray, '/swarm/move_obstacle',
+        self.move_pub = monitor.create_publisher(Float64MultiArray, 'swarm/move_obstacle',
                                                  10)
         self.client = None
         if self.settings:
@@ -217,7 +218,7 @@ class Faults:
         while self.robot_faults and self.robot_faults[0][0] <= t:
             when, victims, topic = self.robot_faults.pop(0)
             self.pubs[topic].publish(self._ints(data=victims))
-            if topic == '/swarm/kill':
+            if topic == 'swarm/kill':
                 for v in victims:
                     self.children.kill(f'agent_{v}')
             print(f'\nlaunch_swarm: t={t:.1f} s {FAULT_WORDS[topic]} {victims}', flush=True)
@@ -227,7 +228,7 @@ class Faults:
         while self.obstacle_moves and self.obstacle_moves[0][0] <= t:
             when, move = self.obstacle_moves.pop(0)
             self.move_pub.publish(self._floats(data=move))
-            self.log.append({'time': when, 'sent_at': t, 'topic': '/swarm/move_obstacle',
+            self.log.append({'time': when, 'sent_at': t, 'topic': 'swarm/move_obstacle',
                              'obstacle': int(move[0]), 'offset': move[1:]})
             print(f'\nlaunch_swarm: t={t:.1f} s obstacle {int(move[0])} moved by '
                   f'({move[1]:g}, {move[2]:g}) m', flush=True)
@@ -296,11 +297,11 @@ def main(argv: list[str] | None = None) -> int:
     except LaunchError as exc:
         print(f'launch_swarm.py: {exc}', file=sys.stderr)
         return 2
-    from swarm_sim.fleet import save_fleet
-    from swarm_sim.shm import clean_stale_segments
+    from swarm_common.fleet import save_fleet
+    from swarm_common.shm import clean_stale_segments
 
     # Stale Fast DDS shared memory of killed processes hangs new participants forever
-    # (swarm_sim.shm); clear it before starting anything.
+    # (swarm_common.shm); clear it before starting anything.
     stale = clean_stale_segments()
     if stale:
         print(f'launch_swarm: removed {len(stale)} stale Fast DDS shared-memory files '
@@ -350,7 +351,13 @@ def supervise(args: argparse.Namespace, run: SwarmRun, children: Children, shape
     # rclpy's own SIGINT handler would shut the monitor's context down, and a run whose
     # KeyboardInterrupt was swallowed then watched a dead monitor for ever: the
     # launcher handles the signals itself (_interrupt).
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    # The monitor and the fault publishers live in the run's namespace, as its nodes.
+    scope = scoped(run)
+    ros_args = (['--ros-args', '-r', f'__ns:={scope["namespace"]}',
+                 *(a for old, new in scope['remappings'] for a in ('-r', f'{old}:={new}'))]
+                if scope['namespace'] else [])
+    rclpy.init(args=['launch_swarm', *ros_args],
+               signal_handler_options=SignalHandlerOptions.NO)
     monitor = MonitorNode(ids, settle_hold_s=args.settle_hold, parameter_overrides=[
         rclpy.parameter.Parameter('use_sim_time', value=True)])
     faults = Faults(monitor, args, children)
@@ -426,7 +433,8 @@ def supervise(args: argparse.Namespace, run: SwarmRun, children: Children, shape
         try:
             summary.truth_readers = sorted({
                 f'{i.node_namespace.rstrip("/")}/{i.node_name}'
-                for i in monitor.get_subscriptions_info_by_topic('/swarm/truth')})
+                for i in monitor.get_subscriptions_info_by_topic(
+                    monitor.resolve_topic_name('swarm/truth'))})
         except RuntimeError:    # rclpy.RCLError: Ctrl-C already shut the context down
             summary.truth_readers = []
         children.stop_all()

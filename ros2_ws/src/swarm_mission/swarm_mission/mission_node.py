@@ -1,11 +1,11 @@
 """mission_node: announces the formation shape and its typed goal states.
 
 Topics and services
-  ``/swarm/shape`` (swarm_msgs/FormationShape, latched)   published: current shape
-  ``/swarm/goals`` (swarm_msgs/GoalArray, latched)        published: current goals
-  ``/swarm/shape_in`` (swarm_msgs/FormationShape)         subscribed: set a shape by topic
-  ``/swarm/set_shape`` (swarm_msgs/srv/SetShape)          service: set a shape, with reply
-  ``/agent_K/state`` (swarm_msgs/AgentState)              subscribed: liveness for self-repair
+  ``swarm/shape`` (swarm_msgs/FormationShape, latched)   published: current shape
+  ``swarm/goals`` (swarm_msgs/GoalArray, latched)        published: current goals
+  ``swarm/shape_in`` (swarm_msgs/FormationShape)         subscribed: set a shape by topic
+  ``swarm/set_shape`` (swarm_msgs/srv/SetShape)          service: set a shape, with reply
+  ``agent_K/state`` (swarm_msgs/AgentState)              subscribed: liveness for self-repair
 
 The shape comes from the ``shape`` parameter (built-in name or .json/.svg/.png file),
 the topic or the service; ``sequence_file`` switches shapes at given sim times and
@@ -23,13 +23,13 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 import yaml
 
-from swarm_mission import qos
-from swarm_mission.conversions import goals_to_msg, shape_from_msg, shape_to_msg
+from swarm_common import qos
+from swarm_common.conversions import goals_to_msg, shape_from_msg, shape_to_msg
+from swarm_common.robot_types import load_robot_types, parse_type_counts, RobotTypeError
+from swarm_common.ros_support import run_node
+from swarm_common.shapes import load_shape, ShapeError
 from swarm_mission.mission import load_sequence, Mission, MissionConfig, parse_morph
-from swarm_mission.node_runner import run_node
 from swarm_mission.partition import PartitionError
-from swarm_mission.robot_types import load_robot_types, parse_type_counts, RobotTypeError
-from swarm_mission.shapes import load_shape, ShapeError
 from swarm_msgs.msg import AgentState, FormationShape, GoalArray
 from swarm_msgs.srv import SetShape
 
@@ -114,13 +114,13 @@ class MissionNode(Node):
         self._start: float | None = None
 
         latched = QoSProfile(**qos.LATCHED)
-        self._shape_pub = self.create_publisher(FormationShape, '/swarm/shape', latched)
-        self._goals_pub = self.create_publisher(GoalArray, '/swarm/goals', latched)
-        self.create_subscription(FormationShape, '/swarm/shape_in', self._on_shape_in,
+        self._shape_pub = self.create_publisher(FormationShape, 'swarm/shape', latched)
+        self._goals_pub = self.create_publisher(GoalArray, 'swarm/goals', latched)
+        self.create_subscription(FormationShape, 'swarm/shape_in', self._on_shape_in,
                                  QoSProfile(**qos.STATE))
-        self.create_service(SetShape, '/swarm/set_shape', self._on_set_shape)
+        self.create_service(SetShape, 'swarm/set_shape', self._on_set_shape)
         for agent in self.mission.agent_types:
-            self.create_subscription(AgentState, f'/agent_{agent}/state', self._on_state,
+            self.create_subscription(AgentState, f'agent_{agent}/state', self._on_state,
                                      QoSProfile(**qos.STATE))
         self.create_timer(0.5, self._on_timer)
         if base is not None:

@@ -1,9 +1,9 @@
 """live_view_node: a running swarm served live to Foxglove over a WebSocket (issue 21).
 
-Subscribes ``/swarm/shape`` (swarm_msgs/FormationShape), ``/swarm/goals``
-(swarm_msgs/GoalArray), ``/swarm/truth`` (swarm_msgs/SwarmTruth, simulation only), and
-for each robot of the fleet ``/agent_K/state`` (swarm_msgs/AgentState: type, beacon,
-mode, estimate, assigned goal, settled) and ``/agent_K/routes`` (swarm_msgs/RouteTable:
+Subscribes ``swarm/shape`` (swarm_msgs/FormationShape), ``swarm/goals``
+(swarm_msgs/GoalArray), ``swarm/truth`` (swarm_msgs/SwarmTruth, simulation only), and
+for each robot of the fleet ``agent_K/state`` (swarm_msgs/AgentState: type, beacon,
+mode, estimate, assigned goal, settled) and ``agent_K/routes`` (swarm_msgs/RouteTable:
 its one-hop neighbours are the radio links). At ``rate_hz`` (wall clock, so the view
 moves while the simulation is paused or slow) it sends the scene and the status built
 by ``swarm_sim.live_view`` on a Foxglove WebSocket server at ``host``:``port``
@@ -12,7 +12,7 @@ connect to ``ws://localhost:8765`` and import ``config/foxglove_layout.json``.
 
 The fleet is ``fleet_file`` (the run's fleet.yaml) or ``agent_ids``; coverage radii come
 from the robot types (``robot_types_file``, Table 4.1 by default). A port that is taken
-ends the node with one line naming it (``swarm_mission.node_runner``).
+ends the node with one line naming it (``swarm_common.ros_support``).
 """
 
 from __future__ import annotations
@@ -25,14 +25,13 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
-from swarm_agent.lean_endpoints import lean_subscription
-from swarm_mission import qos
-from swarm_mission.conversions import goals_from_msg, shape_from_msg
-from swarm_mission.node_runner import run_node
-from swarm_mission.robot_types import load_robot_types
-from swarm_mission.shapes import ShapeError
+from swarm_common import qos
+from swarm_common.conversions import goals_from_msg, shape_from_msg
+from swarm_common.fleet import load_fleet
+from swarm_common.robot_types import load_robot_types
+from swarm_common.ros_support import lean_subscription, run_node
+from swarm_common.shapes import ShapeError
 from swarm_msgs.msg import AgentState, FormationShape, GoalArray, RouteTable, SwarmTruth
-from swarm_sim.fleet import load_fleet
 from swarm_sim.foxglove_view import LiveViewServer
 from swarm_sim.live_view import links_from_routes, NO_GOAL, NOT_HEARD, RobotView, SwarmView
 
@@ -76,12 +75,12 @@ class LiveViewNode(Node):
         self.server = LiveViewServer(port=p['port'], host=p['host'])
         state = QoSProfile(**qos.STATE)
         latched = QoSProfile(**qos.LATCHED)
-        self.create_subscription(FormationShape, '/swarm/shape', self._on_shape, latched)
-        self.create_subscription(GoalArray, '/swarm/goals', self._on_goals, latched)
-        self.create_subscription(SwarmTruth, '/swarm/truth', self._on_truth, state)
+        self.create_subscription(FormationShape, 'swarm/shape', self._on_shape, latched)
+        self.create_subscription(GoalArray, 'swarm/goals', self._on_goals, latched)
+        self.create_subscription(SwarmTruth, 'swarm/truth', self._on_truth, state)
         for agent in self.fleet:
-            lean_subscription(self, AgentState, f'/agent_{agent}/state', self._on_state, state)
-            lean_subscription(self, RouteTable, f'/agent_{agent}/routes', self._on_routes,
+            lean_subscription(self, AgentState, f'agent_{agent}/state', self._on_state, state)
+            lean_subscription(self, RouteTable, f'agent_{agent}/routes', self._on_routes,
                               state)
         self.create_timer(1.0 / p['rate_hz'], self.publish,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -92,7 +91,7 @@ class LiveViewNode(Node):
         try:
             shape = shape_from_msg(msg)
         except ShapeError as exc:
-            self.get_logger().warning(f'/swarm/shape: {exc}; the view keeps the last shape')
+            self.get_logger().warning(f'swarm/shape: {exc}; the view keeps the last shape')
             return
         with self.lock:
             self.shape = shape

@@ -1,7 +1,7 @@
 """monitor_node: records a running swarm for metrics and plots (never read by agents).
 
-Subscribes ``/swarm/truth`` (swarm_msgs/SwarmTruth), ``/swarm/shape``,
-``/swarm/goals`` and every ``/agent_K/state`` (swarm_msgs/AgentState), and keeps a
+Subscribes ``swarm/truth`` (swarm_msgs/SwarmTruth), ``swarm/shape``,
+``swarm/goals`` and every ``agent_K/state`` (swarm_msgs/AgentState), and keeps a
 2 Hz record of truth and belief: true positions and velocities, estimated positions,
 modes, assigned goals and assignment digests. At every truth message it checks the
 settled condition of eq. 4.1 (``settle``, a ``swarm_sim.metrics.SettleTracker``; a new
@@ -20,11 +20,10 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
 from swarm_agent.conversions import stamp_seconds
-from swarm_agent.lean_endpoints import lean_subscription
-from swarm_mission import qos
-from swarm_mission.conversions import goals_from_msg, shape_from_msg
-from swarm_mission.node_runner import run_node
-from swarm_mission.shapes import ShapeError
+from swarm_common import qos
+from swarm_common.conversions import goals_from_msg, shape_from_msg
+from swarm_common.ros_support import lean_subscription, run_node
+from swarm_common.shapes import ShapeError
 from swarm_msgs.msg import AgentState, FormationShape, GoalArray, SwarmTruth
 from swarm_sim.metrics import inside_mask, SETTLE_HOLD_S, SETTLE_SPEED, settled_now, SettleTracker
 
@@ -57,13 +56,13 @@ class MonitorNode(Node):
         self.rounds_seen: set[int] = set()
         self.settle = SettleTracker(settle_hold_s)
         state_qos = QoSProfile(**qos.STATE)
-        self.create_subscription(SwarmTruth, '/swarm/truth', self._on_truth, state_qos)
-        self.create_subscription(FormationShape, '/swarm/shape', self._on_shape,
+        self.create_subscription(SwarmTruth, 'swarm/truth', self._on_truth, state_qos)
+        self.create_subscription(FormationShape, 'swarm/shape', self._on_shape,
                                  QoSProfile(**qos.LATCHED))
-        self.create_subscription(GoalArray, '/swarm/goals', self._on_goals,
+        self.create_subscription(GoalArray, 'swarm/goals', self._on_goals,
                                  QoSProfile(**qos.LATCHED))
         for agent in self.agent_ids:
-            lean_subscription(self, AgentState, f'/agent_{agent}/state', self._on_state,
+            lean_subscription(self, AgentState, f'agent_{agent}/state', self._on_state,
                               state_qos)
 
     def now(self) -> float:

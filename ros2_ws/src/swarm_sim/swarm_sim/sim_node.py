@@ -8,24 +8,24 @@ possible, it steps once every agent has answered the current time (a guard condi
 after the callbacks of its wait), else at ``clock_rate_hz``.
 
 Topics (K: a robot id; per-robot topics have no default QoS event handlers,
-``swarm_agent.lean_endpoints``: with them 50 robots made a wait set of 750 entities)
-  published  ``/clock``; ``/agent_K/imu`` (sensor_msgs/Imu, map-frame acceleration);
-             ``/agent_K/gps`` (geometry_msgs/PoseWithCovarianceStamped, beacons only);
-             ``/agent_K/ranges`` (swarm_msgs/RangeArray, TOA ranges to beacon
-             neighbours); ``/agent_K/proximity`` (swarm_msgs/ProximityArray, neighbours
-             within ``proximity_range_m``); ``/agent_K/radio/rx`` (swarm_msgs/
+``swarm_common.ros_support``: with them 50 robots made a wait set of 750 entities)
+  published  ``/clock``; ``agent_K/imu`` (sensor_msgs/Imu, map-frame acceleration);
+             ``agent_K/gps`` (geometry_msgs/PoseWithCovarianceStamped, beacons only);
+             ``agent_K/ranges`` (swarm_msgs/RangeArray, TOA ranges to beacon
+             neighbours); ``agent_K/proximity`` (swarm_msgs/ProximityArray, neighbours
+             within ``proximity_range_m``); ``agent_K/radio/rx`` (swarm_msgs/
              RadioPacketArray, the medium's deliveries since the last batch);
-             ``/swarm/sensor_batch`` (swarm_msgs/SensorBatch, with ``sensor_batch``: those
+             ``swarm/sensor_batch`` (swarm_msgs/SensorBatch, with ``sensor_batch``: those
              four topics of every robot in one message per step, for composed agents);
-             ``/swarm/truth`` (swarm_msgs/SwarmTruth, metrics only) and ``/tf`` (the
-             truth as ``map -> truth/agent_K/base_link``); ``/swarm/markers``
+             ``swarm/truth`` (swarm_msgs/SwarmTruth, metrics only) and ``/tf`` (the
+             truth as ``map -> truth/agent_K/base_link``); ``swarm/markers``
              (visualization_msgs/MarkerArray, ``marker_rate_hz``, 0 turns it off)
-  subscribed ``/agent_K/cmd_force`` (geometry_msgs/WrenchStamped, N, map frame) or, with
-             ``sensor_batch``, ``/swarm/cmd_batch`` (swarm_msgs/ForceBatch);
-             ``/radio/tx`` (swarm_msgs/RadioPacketArray, the agents' batches);
-             ``/agent_K/state``, ``/swarm/goals``, ``/swarm/shape`` (markers only)
-  faults     ``/swarm/kill``, ``/swarm/radio_off``, ``/swarm/radio_on`` (std_msgs/
-             Int32MultiArray of robot ids), ``/swarm/move_obstacle`` (std_msgs/
+  subscribed ``agent_K/cmd_force`` (geometry_msgs/WrenchStamped, N, map frame) or, with
+             ``sensor_batch``, ``swarm/cmd_batch`` (swarm_msgs/ForceBatch);
+             ``radio/tx`` (swarm_msgs/RadioPacketArray, the agents' batches);
+             ``agent_K/state``, ``swarm/goals``, ``swarm/shape`` (markers only)
+  faults     ``swarm/kill``, ``swarm/radio_off``, ``swarm/radio_on`` (std_msgs/
+             Int32MultiArray of robot ids), ``swarm/move_obstacle`` (std_msgs/
              Float64MultiArray ``[k, dx, dy]``), as ``World.inject`` applies them; run-time
              parameters ``loss``, ``radio_range_m``, ``radio_wall_speed_mps``
              (``World.apply_setting``; a bad value is refused with the reason).
@@ -50,10 +50,11 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
 from swarm_agent.conversions import frames_or_log, stamp_seconds
-from swarm_agent.lean_endpoints import lean_publisher, lean_subscription
-from swarm_mission import qos
-from swarm_mission.conversions import goals_from_msg, shape_from_msg
-from swarm_mission.shapes import ShapeError
+from swarm_common import qos
+from swarm_common.conversions import goals_from_msg, shape_from_msg
+from swarm_common.fleet import FleetError
+from swarm_common.ros_support import lean_publisher, lean_subscription
+from swarm_common.shapes import ShapeError
 from swarm_msgs.msg import (
     AgentState,
     ForceBatch,
@@ -64,7 +65,6 @@ from swarm_msgs.msg import (
     SwarmTruth,
 )
 from swarm_sim import conversions as conv
-from swarm_sim.fleet import FleetError
 from swarm_sim.markers import swarm_markers
 from swarm_sim.medium import RUNTIME_SETTINGS
 from swarm_sim.pacing import Pacer
@@ -98,22 +98,22 @@ class SimNode(Node):
         sensor, radio, state, imu, command = (
             QoSProfile(**q) for q in (qos.SENSOR, qos.RADIO, qos.STATE, qos.IMU, qos.COMMAND))
         self.clock_pub = self.create_publisher(Clock, '/clock', 10)
-        self.truth_pub = self.create_publisher(SwarmTruth, '/swarm/truth', state)
+        self.truth_pub = self.create_publisher(SwarmTruth, 'swarm/truth', state)
         self.tf_pub = self.create_publisher(TFMessage, '/tf', state)   # reliable, as tf2's
-        self.marker_pub = self.create_publisher(MarkerArray, '/swarm/markers', state)
+        self.marker_pub = self.create_publisher(MarkerArray, 'swarm/markers', state)
         # What the markers show beyond the world: modes, goals and the shape, heard only
         # when markers are on (a state subscription per robot costs callbacks).
         self._modes, self._goals, self._shape = {}, [], None
         if p['marker_rate_hz'] > 0:
             self._next_marker = 0.0
             latched = QoSProfile(**qos.LATCHED)
-            self.create_subscription(GoalArray, '/swarm/goals', lambda m: setattr(
+            self.create_subscription(GoalArray, 'swarm/goals', lambda m: setattr(
                 self, '_goals', goals_from_msg(m)), latched)
-            self.create_subscription(FormationShape, '/swarm/shape', self._on_shape, latched)
+            self.create_subscription(FormationShape, 'swarm/shape', self._on_shape, latched)
             for r in self.fleet:
-                lean_subscription(self, AgentState, f'/agent_{r.id}/state',
+                lean_subscription(self, AgentState, f'agent_{r.id}/state',
                                   lambda m: self._modes.__setitem__(m.id, m.mode), state)
-        self.batch_pub = (self.create_publisher(SensorBatch, '/swarm/sensor_batch', radio)
+        self.batch_pub = (self.create_publisher(SensorBatch, 'swarm/sensor_batch', radio)
                           if p['sensor_batch'] else None)
         self.pubs: dict[tuple[str, int], object] = {}   # (kind, robot id): publisher
         kinds = {'gps': sensor, 'imu': imu, 'ranges': sensor, 'rx': radio, 'proximity': sensor}
@@ -124,21 +124,21 @@ class SimNode(Node):
                 if kind != 'gps' or r.is_beacon:
                     msg_type, topic = conv.ROBOT_TOPICS[kind]
                     self.pubs[kind, r.id] = lean_publisher(self, msg_type,
-                                                           f'/agent_{r.id}/{topic}', profile)
+                                                           f'agent_{r.id}/{topic}', profile)
             if not p['sensor_batch']:
-                lean_subscription(self, WrenchStamped, f'/agent_{r.id}/cmd_force',
+                lean_subscription(self, WrenchStamped, f'agent_{r.id}/cmd_force',
                                   lambda m, i=i: self._command(
                                       [i], [[m.wrench.force.x, m.wrench.force.y]],
                                       [stamp_seconds(m.header.stamp)]), command)
         if p['sensor_batch']:
             # Composed agents answer in kind: every command of a step in one ForceBatch.
-            self.create_subscription(ForceBatch, '/swarm/cmd_batch', self._on_force_batch,
+            self.create_subscription(ForceBatch, 'swarm/cmd_batch', self._on_force_batch,
                                      QoSProfile(**qos.COMMAND_BATCH))
-        self._tx_sub = self.create_subscription(RadioPacketArray, '/radio/tx', self._on_tx, radio)
+        self._tx_sub = self.create_subscription(RadioPacketArray, 'radio/tx', self._on_tx, radio)
         for fault in ('kill', 'radio_off', 'radio_on', 'move_obstacle'):
             self.create_subscription(
                 Float64MultiArray if fault == 'move_obstacle' else Int32MultiArray,
-                f'/swarm/{fault}', lambda m, f=fault: self._on_fault(f, m.data), 10)
+                f'swarm/{fault}', lambda m, f=fault: self._on_fault(f, m.data), 10)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._step_now = self.create_guard_condition(self._on_tick)
         self.create_timer(1.0 / p['clock_rate_hz'], self._on_tick)
@@ -152,7 +152,7 @@ class SimNode(Node):
     def _on_force_batch(self, msg: ForceBatch) -> None:
         rows, forces, stamps, errors = conv.force_batch_rows(msg, self.world.index)
         for error in errors:
-            self.get_logger().error(f'/swarm/cmd_batch: {error}', throttle_duration_sec=10.0)
+            self.get_logger().error(f'swarm/cmd_batch: {error}', throttle_duration_sec=10.0)
         self._command(rows, forces, stamps)
 
     def _command(self, rows: list[int], forces, stamps) -> None:
@@ -189,7 +189,7 @@ class SimNode(Node):
 
     def _transmit(self, msg: RadioPacketArray) -> None:
         t = self.world.t   # a frame is on the air from its stamp (the agent's clock), not later
-        for stamp, packet in frames_or_log(msg, self.get_logger(), '/radio/tx'):
+        for stamp, packet in frames_or_log(msg, self.get_logger(), 'radio/tx'):
             if packet.source in self.world.index:
                 self.world.medium.transmit(stamp if 0.0 < stamp < t else t, packet)
 
@@ -268,7 +268,7 @@ class SimNode(Node):
         try:
             self._shape = shape_from_msg(msg)
         except ValueError as exc:
-            self.get_logger().warning(f'/swarm/shape: {exc}; markers keep the last shape')
+            self.get_logger().warning(f'swarm/shape: {exc}; markers keep the last shape')
 
     def close(self) -> None:
         """Flush the run record and release the physics."""
