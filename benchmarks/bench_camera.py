@@ -25,7 +25,7 @@ import numpy as np
 from swarm_bridge.arena_calibration import calibrate
 from swarm_bridge.camera_render import CameraConfig, CameraRenderer, Cover
 from swarm_bridge.camera_tracker import CameraTracker
-from swarm_bridge.fleet import load_cover_colors, load_fleet
+from swarm_common.fleet import load_cover_colors, load_fleet
 
 
 def bench(frames: int, brightness: float, width: int = 640, height: int = 480) -> dict:
@@ -47,16 +47,16 @@ def bench(frames: int, brightness: float, width: int = 640, height: int = 480) -
                                        for r, p in zip(robots, poses)]))
     render_s = (time.perf_counter() - t0) / frames
     tracker = CameraTracker(robots, colors, calibration, initial_poses={
-        r.agent_id: p[:2] for r, p in zip(robots, truth[0])})
+        r.id: p[:2] for r, p in zip(robots, truth[0])})
     seconds, errors, turns, found = [], [], [], 0
     for f, image in enumerate(images):
         t = time.perf_counter()
         result = tracker.update(image, f / 30.0)
         seconds.append(time.perf_counter() - t)
         for r, (x, y, yaw) in zip(robots, truth[f]):
-            if r.agent_id in result.poses:
+            if r.id in result.poses:
                 found += 1
-                px, py, pyaw = result.poses[r.agent_id]
+                px, py, pyaw = result.poses[r.id]
                 errors.append(math.hypot(px - x, py - y))
                 turns.append(math.degrees(math.remainder(pyaw - yaw, math.tau)))
     return {'robots': len(robots), 'width': width, 'height': height, 'frames': frames,

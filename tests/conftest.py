@@ -38,10 +38,10 @@ settings.load_profile('swarm')
 
 
 def pytest_sessionstart(session) -> None:
-    """Clear Fast DDS shared memory left by killed processes (swarm_sim.shm): a stale
+    """Clear Fast DDS shared memory left by killed processes (swarm_common.shm): a stale
     segment hangs every later participant of its domain in rcl_node_init."""
     try:
-        from swarm_sim.shm import clean_stale_segments
+        from swarm_common.shm import clean_stale_segments
     except ImportError:
         return  # the workspace is not built: the ROS tests are skipped anyway
     clean_stale_segments()

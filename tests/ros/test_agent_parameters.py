@@ -21,10 +21,10 @@ from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile  # noqa: E402
 from spin import beacon_agent  # noqa: E402
 
-from swarm_mission import qos  # noqa: E402
-from swarm_mission.conversions import goals_to_msg, shape_to_msg  # noqa: E402
-from swarm_mission.goals import Goal  # noqa: E402
-from swarm_mission.shapes import load_shape  # noqa: E402
+from swarm_common import qos  # noqa: E402
+from swarm_common.conversions import goals_to_msg, shape_to_msg  # noqa: E402
+from swarm_common.goals import Goal  # noqa: E402
+from swarm_common.shapes import load_shape  # noqa: E402
 from swarm_msgs.msg import FormationShape, GoalArray  # noqa: E402
 
 

@@ -19,7 +19,7 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from swarm_bridge import protocol  # noqa: E402
 from swarm_bridge.bridge_node import BridgeNode, SENSOR_QOS, STATE_QOS  # noqa: E402
 from swarm_bridge.emulator import EmulatedRadio, PtyEmulator  # noqa: E402
-from swarm_bridge.fleet import load_fleet  # noqa: E402
+from swarm_common.fleet import load_fleet  # noqa: E402
 
 
 def test_bridge_node_drives_an_emulated_robot_and_stops_it():
@@ -30,12 +30,12 @@ def test_bridge_node_drives_an_emulated_robot_and_stops_it():
     rclpy.init(context=context)
     executor = SingleThreadedExecutor(context=context)
     node = BridgeNode(context=context, parameter_overrides=[
-        Parameter('port', value=emu.port), Parameter('agents', value=str(robot.agent_id))])
+        Parameter('port', value=emu.port), Parameter('agents', value=str(robot.id))])
     probe = rclpy.create_node('probe', context=context)
     executor.add_node(node)
     executor.add_node(probe)
     wheels: list[JointState] = []
-    k = robot.agent_id
+    k = robot.id
     probe.create_subscription(JointState, f'/agent_{k}/wheel_states', wheels.append,
                               QoSProfile(**STATE_QOS))
     cmd_pub = probe.create_publisher(Twist, f'/agent_{k}/cmd_vel', QoSProfile(**SENSOR_QOS))

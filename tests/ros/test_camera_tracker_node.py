@@ -22,9 +22,9 @@ from spin import ros_context, spin_until  # noqa: E402
 from swarm_bridge.arena_calibration import calibrate  # noqa: E402
 from swarm_bridge.camera_render import CameraRenderer, Cover  # noqa: E402
 from swarm_bridge.camera_tracker_node import CameraTrackerNode, IMAGE_QOS  # noqa: E402
-from swarm_bridge.fleet import load_cover_colors, load_fleet  # noqa: E402
 from swarm_bridge.image_msgs import image_to_msg  # noqa: E402
-from swarm_mission import qos  # noqa: E402
+from swarm_common import qos  # noqa: E402
+from swarm_common.fleet import load_cover_colors, load_fleet  # noqa: E402
 
 ROBOTS = load_fleet()
 COLORS = load_cover_colors()
@@ -41,8 +41,8 @@ def _scene(tmp_path):
 
 def _listen(probe, poses: dict, diags: list) -> None:
     for r in ROBOTS:
-        probe.create_subscription(PoseStamped, f'/agent_{r.agent_id}/pose',
-                                  lambda m, k=r.agent_id: poses.__setitem__(k, m),
+        probe.create_subscription(PoseStamped, f'/agent_{r.id}/pose',
+                                  lambda m, k=r.id: poses.__setitem__(k, m),
                                   QoSProfile(**qos.SENSOR))
     probe.create_subscription(DiagnosticArray, '/diagnostics', diags.append,
                               QoSProfile(**qos.STATE))
@@ -50,8 +50,8 @@ def _listen(probe, poses: dict, diags: list) -> None:
 
 def _check(poses: dict) -> None:
     for r, (x, y, yaw) in zip(ROBOTS, POSES):
-        p = poses[r.agent_id].pose
-        assert poses[r.agent_id].header.frame_id == 'map'
+        p = poses[r.id].pose
+        assert poses[r.id].header.frame_id == 'map'
         assert math.hypot(p.position.x - x, p.position.y - y) < 0.01
         got = 2.0 * math.atan2(p.orientation.z, p.orientation.w)
         assert abs(math.degrees(math.remainder(got - yaw, math.tau))) < 3.0

@@ -28,8 +28,8 @@ from spin import ros_context, spin_until  # noqa: E402
 
 from swarm_agent.agent_node import make_executor  # noqa: E402
 from swarm_agent.composed_node import ComposedAgents  # noqa: E402
-from swarm_mission import qos  # noqa: E402
-from swarm_sim.fleet import RobotSpec, save_fleet  # noqa: E402
+from swarm_common import qos  # noqa: E402
+from swarm_common.fleet import RobotSpec, save_fleet  # noqa: E402
 
 AGENTS = 6
 ADVANCES = 150

@@ -19,7 +19,7 @@ from swarm_bridge.arena_calibration import calibrate  # noqa: E402
 from swarm_bridge.camera_render import CameraRenderer, sim_camera_config  # noqa: E402
 from swarm_bridge.camera_tracker_node import CameraTrackerNode  # noqa: E402
 from swarm_bridge.hil_world_node import HilWorldNode, PARAMETERS  # noqa: E402
-from swarm_mission import qos  # noqa: E402
+from swarm_common import qos  # noqa: E402
 
 
 def _yaw(msg: PoseStamped) -> float:

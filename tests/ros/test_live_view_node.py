@@ -20,10 +20,10 @@ from rclpy.qos import QoSProfile  # noqa: E402
 from shapely.geometry import box  # noqa: E402
 from spin import ros_context, spin_until  # noqa: E402
 
-from swarm_mission import qos  # noqa: E402
-from swarm_mission.conversions import goals_to_msg, shape_to_msg  # noqa: E402
-from swarm_mission.goals import Goal  # noqa: E402
-from swarm_mission.shapes import Shape  # noqa: E402
+from swarm_common import qos  # noqa: E402
+from swarm_common.conversions import goals_to_msg, shape_to_msg  # noqa: E402
+from swarm_common.goals import Goal  # noqa: E402
+from swarm_common.shapes import Shape  # noqa: E402
 from swarm_msgs.msg import (  # noqa: E402
     AgentState,
     AgentTruth,

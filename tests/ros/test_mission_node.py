@@ -14,10 +14,10 @@ from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile  # noqa: E402
 from spin import ros_context, spin_until  # noqa: E402
 
-from swarm_mission import qos  # noqa: E402
-from swarm_mission.conversions import goals_from_msg  # noqa: E402
+from swarm_common import qos  # noqa: E402
+from swarm_common.conversions import goals_from_msg  # noqa: E402
+from swarm_common.shapes import ShapeError  # noqa: E402
 from swarm_mission.mission_node import MissionNode  # noqa: E402
-from swarm_mission.shapes import ShapeError  # noqa: E402
 from swarm_msgs.msg import GoalArray  # noqa: E402
 
 

@@ -10,8 +10,8 @@ rclpy_qos = pytest.importorskip('rclpy.qos')
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 
-from swarm_agent.lean_endpoints import lean_publisher, lean_subscription  # noqa: E402
-from swarm_mission import qos  # noqa: E402
+from swarm_common import qos  # noqa: E402
+from swarm_common.ros_support import lean_publisher, lean_subscription  # noqa: E402
 
 
 def test_integers_match_rclpy_enums():

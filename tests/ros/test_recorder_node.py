@@ -20,7 +20,7 @@ from spin import ros_context, spin_until  # noqa: E402
 
 from swarm_bringup.bag import read_messages  # noqa: E402
 from swarm_bringup.recorder_node import RecorderNode  # noqa: E402
-from swarm_mission import qos  # noqa: E402
+from swarm_common import qos  # noqa: E402
 from swarm_msgs.msg import AgentState, GoalArray, GoalState  # noqa: E402
 
 SIM_START_S = 42   # the sim time on /clock while the test publishes

@@ -24,7 +24,7 @@ from rclpy.parameter_client import AsyncParameterClient  # noqa: E402
 from spin import ros_context, spin_until  # noqa: E402
 
 from swarm_agent.packet import BROADCAST, Packet  # noqa: E402
-from swarm_sim.fleet import RobotSpec, save_fleet  # noqa: E402
+from swarm_common.fleet import RobotSpec, save_fleet  # noqa: E402
 from swarm_sim.sim_node import SimNode  # noqa: E402
 
 
@@ -128,7 +128,7 @@ def _check_radio_obstacle_and_markers(executor, sim, probe):
     from std_msgs.msg import Float64MultiArray, Int32MultiArray
     from visualization_msgs.msg import MarkerArray
 
-    from swarm_mission import qos
+    from swarm_common import qos
     from swarm_msgs.msg import AgentState
 
     radio_off = probe.create_publisher(Int32MultiArray, '/swarm/radio_off', 10)
@@ -189,7 +189,7 @@ def test_the_world_takes_a_composed_process_commands_in_one_batch(tmp_path):
     """sensor_batch: forces arrive as swarm_msgs/ForceBatch; a malformed one is dropped."""
     from rclpy.qos import QoSProfile
 
-    from swarm_mission import qos
+    from swarm_common import qos
     from swarm_msgs.msg import ForceBatch
 
     robots = [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 2, True, 6.0, 0.0)]
@@ -226,7 +226,7 @@ def test_the_world_publishes_each_robots_proximity_scan(tmp_path):
     from std_msgs.msg import Int32MultiArray
 
     from swarm_agent.conversions import proximity_from_msg
-    from swarm_mission import qos
+    from swarm_common import qos
     from swarm_msgs.msg import ProximityArray
 
     robots = [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 3, True, 2.0, 0.0),
@@ -267,7 +267,7 @@ def test_a_composed_world_sends_proximity_in_its_sensor_batch(tmp_path):
     from rclpy.qos import QoSProfile
 
     from swarm_agent.conversions import sensor_batch_from_msg
-    from swarm_mission import qos
+    from swarm_common import qos
     from swarm_msgs.msg import SensorBatch
 
     robots = [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 2, True, 0.0, 2.5)]
@@ -309,7 +309,7 @@ def test_one_tx_callback_takes_every_queued_radio_batch(tmp_path):
     from rclpy.qos import QoSProfile
 
     from swarm_agent.conversions import frames_to_msg
-    from swarm_mission import qos
+    from swarm_common import qos
     from swarm_msgs.msg import RadioPacketArray
 
     with _world(tmp_path, THREE) as (executor, sim, probe):

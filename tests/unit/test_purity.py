@@ -9,10 +9,10 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 SRC = ROOT / 'ros2_ws' / 'src'
 
 
-# ROS-side helpers shared by the nodes of several packages, so that no package imports
-# another's node module: rclpy endpoints without default QoS event handlers, and the
-# main() of every node (one-line errors for bad input).
-SHARED_ROS_HELPERS = {'swarm_agent/lean_endpoints.py', 'swarm_mission/node_runner.py'}
+# The ROS-side helpers of the base package, shared by the nodes of every package so that
+# no package imports another's node module: the main() of every node (one-line errors for
+# bad input) and rclpy endpoints without default QoS event handlers.
+SHARED_ROS_HELPERS = {'swarm_common/ros_support.py'}
 
 
 def _is_allowed(path: pathlib.Path) -> bool:

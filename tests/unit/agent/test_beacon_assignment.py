@@ -13,8 +13,8 @@ from swarm_agent.agent_factory import make_brain
 from swarm_agent.assignment import assign
 from swarm_agent.costs import class_costs
 from swarm_agent.mesh_messages import CostRow
-from swarm_mission.goals import Goal
-from swarm_mission.shapes import load_shape
+from swarm_common.goals import Goal
+from swarm_common.shapes import load_shape
 
 
 def test_class_costs_masks_the_other_class_only_when_goals_are_marked():

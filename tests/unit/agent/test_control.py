@@ -28,7 +28,7 @@ from swarm_agent.lqr import (
     VelocityLoop,
 )
 from swarm_agent.setpoint import avoid_collisions, SetpointParams, velocity_setpoint
-from swarm_mission.robot_types import GRAVITY, load_robot_types, LqrDesign, RobotType
+from swarm_common.robot_types import GRAVITY, load_robot_types, LqrDesign, RobotType
 
 TYPES = load_robot_types()
 DESIGN = LqrDesign()          # eq. 3.111: t1=1.5 s, t2=0.01 s, 1 m/s, 4 m, 3 N

@@ -18,7 +18,7 @@ from shapely.geometry import box, LineString, Point, Polygon
 
 from swarm_agent.costs import VisibilityGraph
 from swarm_agent.free_space import check_free, free_space, FreeSpaceError, grow_obstacles
-from swarm_mission.robot_types import load_robot_types
+from swarm_common.robot_types import load_robot_types
 
 RADII = sorted(t.coverage_radius for t in load_robot_types().values())  # Table 4.1
 SIDE = 2.0

@@ -71,7 +71,7 @@ def test_the_agents_prior_is_the_worlds_placement_error_by_default():
     pytest.importorskip('rclpy')
     from swarm_agent.agent_node import PARAMETERS as AGENT
     from swarm_agent.composed_node import SHARED
-    from swarm_sim.fleet import PLACEMENT_STD_M
+    from swarm_common.fleet import PLACEMENT_STD_M
     from swarm_sim.sim_node import PARAMETERS as SIM
 
     assert AGENT['placement_std_m'][0] == SHARED['placement_std_m'][0] == \

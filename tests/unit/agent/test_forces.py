@@ -20,7 +20,7 @@ import pytest
 from scipy.optimize import brentq
 
 from swarm_agent.forces import ForceParams, formation_force
-from swarm_mission.shapes import load_shape
+from swarm_common.shapes import load_shape
 from swarm_sim.headless import HeadlessSwarm, Scenario
 from swarm_sim.metrics import inside_mask
 

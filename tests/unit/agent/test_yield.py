@@ -7,8 +7,8 @@ import numpy as np
 from shapely.geometry import box
 
 from swarm_agent.agent_factory import make_brain
-from swarm_mission.goals import Goal
-from swarm_mission.shapes import Shape
+from swarm_common.goals import Goal
+from swarm_common.shapes import Shape
 
 DT = 0.02
 

@@ -6,7 +6,7 @@ import math
 
 from swarm_bridge import emulator, protocol, xbee
 from swarm_bridge.bridge import Bridge
-from swarm_bridge.fleet import load_fleet
+from swarm_common.fleet import load_fleet
 
 
 def run(bridge, radio, t0, seconds, agent=None, setpoint=None, yaw=0.0, dt=0.01):

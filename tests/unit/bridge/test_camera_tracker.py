@@ -18,7 +18,7 @@ import pytest
 from swarm_bridge.arena_calibration import calibrate
 from swarm_bridge.camera_render import CameraConfig, CameraRenderer, Cover, SimCamera
 from swarm_bridge.camera_tracker import CameraTracker, hue_lut, hue_of, TrackerError, UNKNOWN
-from swarm_bridge.fleet import load_cover_colors, load_fleet, Robot
+from swarm_common.fleet import load_cover_colors, load_fleet, RobotSpec
 
 ROBOTS = load_fleet()
 COLORS = load_cover_colors()
@@ -34,7 +34,7 @@ def _camera(brightness: float, seed: int = 1, noise: float = 3.0, blur: float = 
     return renderer, calibrate(renderer.render([]))
 
 
-def _random_poses(rng: np.random.Generator, robots: list[Robot], spread: float = 0.8
+def _random_poses(rng: np.random.Generator, robots: list[RobotSpec], spread: float = 0.8
                   ) -> list[tuple[float, float, float]]:
     poses: list[tuple[float, float, float]] = []
     while len(poses) < len(robots):
@@ -46,15 +46,15 @@ def _random_poses(rng: np.random.Generator, robots: list[Robot], spread: float =
     return poses
 
 
-def _covers(robots: list[Robot], poses) -> list[Cover]:
+def _covers(robots: list[RobotSpec], poses) -> list[Cover]:
     return [Cover(COLORS[r.color], r.radius, *p) for r, p in zip(robots, poses)]
 
 
 def _errors(result, robots, poses) -> tuple[list[float], list[float]]:
     pos, head = [], []
     for r, (x, y, yaw) in zip(robots, poses):
-        assert r.agent_id in result.poses, (r.agent_id, r.color, result)
-        ex, ey, eyaw = result.poses[r.agent_id]
+        assert r.id in result.poses, (r.id, r.color, result)
+        ex, ey, eyaw = result.poses[r.id]
         pos.append(math.hypot(ex - x, ey - y))
         head.append(math.degrees(math.remainder(eyaw - yaw, math.tau)))
     return pos, head
@@ -104,7 +104,7 @@ def test_a_cover_edge_over_a_neighbour_does_not_move_it(bearing_deg):
     assert _rms(pos) < 0.01 and _rms(head) < 3.0, (pos, head)
 
 
-def _trajectories(robots: list[Robot], seconds: float, hz: float, seed: int) -> np.ndarray:
+def _trajectories(robots: list[RobotSpec], seconds: float, hz: float, seed: int) -> np.ndarray:
     """Robots driving to random waypoints at up to 0.1 m/s (3 x the steppers' speed),
     keeping their covers apart: (frames, robots, 3) poses."""
     rng = np.random.default_rng(seed)
@@ -149,7 +149,7 @@ def test_ids_never_swap_over_two_minutes_with_two_robots_per_colour():
                  for b in (0.35, 0.7, 1.0, 1.3)}
     cal = calibrate(renderers[1.0].render([]))
     tracker = CameraTracker(SHARED, COLORS, cal, initial_poses={
-        r.agent_id: tuple(truth[0, i, :2]) for i, r in enumerate(SHARED)})
+        r.id: tuple(truth[0, i, :2]) for i, r in enumerate(SHARED)})
     levels = list(renderers)
     seen, closest, pos, head = 0, math.inf, [], []
     for f, poses in enumerate(truth):
@@ -157,13 +157,13 @@ def test_ids_never_swap_over_two_minutes_with_two_robots_per_colour():
             2 * (len(levels) - 1)) - (len(levels) - 1)) + 0.5) % len(levels)]
         result = tracker.update(renderers[level].render(_covers(SHARED, poses)), f / hz)
         for i, r in enumerate(SHARED):
-            if r.agent_id not in result.poses:
+            if r.id not in result.poses:
                 continue
             seen += 1
-            x, y, yaw = result.poses[r.agent_id]
+            x, y, yaw = result.poses[r.id]
             err = math.hypot(x - poses[i, 0], y - poses[i, 1])
             # a swapped id is a neighbour's pose: at least two cover radii away
-            assert err < 0.05, f'agent {r.agent_id} given a pose {err:.3f} m off at frame {f}'
+            assert err < 0.05, f'agent {r.id} given a pose {err:.3f} m off at frame {f}'
             pos.append(err)
             head.append(math.degrees(math.remainder(yaw - poses[i, 2], math.tau)))
         for i in (1, 3):       # the same-colour pairs did come close
@@ -176,11 +176,11 @@ def test_ids_never_swap_over_two_minutes_with_two_robots_per_colour():
 
 def test_unknown_colour_is_ignored_and_counted():
     renderer, cal = _camera(1.0)
-    poses = _random_poses(np.random.default_rng(5), ROBOTS + [replace(ROBOTS[0], agent_id=9)])
+    poses = _random_poses(np.random.default_rng(5), ROBOTS + [replace(ROBOTS[0], id=9)])
     covers = _covers(ROBOTS, poses[:5]) + [Cover(CYAN, 0.16, *poses[5])]
     result = CameraTracker(ROBOTS, COLORS, cal).update(renderer.render(covers), 0.0)
     assert result.unknown_covers == 1
-    assert sorted(result.poses) == [r.agent_id for r in ROBOTS]
+    assert sorted(result.poses) == [r.id for r in ROBOTS]
     assert len(result.detections) == 5
 
 
@@ -224,7 +224,7 @@ def test_a_jump_beyond_the_gate_is_not_taken_for_the_same_robot():
     poses = [(-0.6, -0.6, 0.0), (0.5, 0.5, 0.0), (-0.5, 0.5, 0.0), (0.6, -0.6, 0.0),
              (0.0, -0.2, 0.0)]
     tracker = CameraTracker(SHARED, COLORS, cal, initial_poses={
-        r.agent_id: p[:2] for r, p in zip(SHARED, poses)})
+        r.id: p[:2] for r, p in zip(SHARED, poses)})
     tracker.update(renderer.render(_covers(SHARED, poses)), 0.0)
     moved = list(poses)
     moved[4] = (-0.7, 0.0, 0.0)              # 0.73 m away in 0.1 s: not plausible

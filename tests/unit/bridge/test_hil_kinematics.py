@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from swarm_bridge import emulator, protocol, xbee
-from swarm_bridge.fleet import initial_poses
 from swarm_bringup import hil
+from swarm_common.fleet import initial_poses, load_fleet
 
 
 @pytest.mark.parametrize('yaw_deg', [0.0, 37.0, 90.0, -135.0, 180.0])
@@ -48,16 +48,17 @@ def test_equal_wheel_steps_turn_the_robot_without_moving_it():
     assert math.hypot(x, y) < 1e-7 and yaw < 0.0   # a full turn: sum of travels / r
 
 
-def test_initial_poses_parameter():
-    assert initial_poses([0.0], 2) == [(-0.8, -0.8, 0.0), (-0.4, -0.8, 0.0)]
-    assert initial_poses([1.0, 2.0, 90.0], 1) == [(1.0, 2.0, math.pi / 2)]
+def test_initial_poses_parameter_overrides_the_fleet_poses():
+    robots = load_fleet(hardware=True)[:2]
+    assert initial_poses([0.0], robots) == [(-0.8, -0.8, 0.0), (-0.4, -0.8, 0.0)]
+    assert initial_poses([1.0, 2.0, 90.0, 0.0, 0.0, 0.0], robots)[0] == (1.0, 2.0, math.pi / 2)
     with pytest.raises(ValueError, match='x,y,yaw_deg for each of the 2 robots'):
-        initial_poses([1.0, 2.0, 3.0, 4.0], 2)
+        initial_poses([1.0, 2.0, 3.0, 4.0], robots)
 
 
 def test_hil_analysis_measures_displacement_and_eq_5_4_settling():
-    from swarm_mission.goals import Goal
-    from swarm_mission.shapes import load_shape
+    from swarm_common.goals import Goal
+    from swarm_common.shapes import load_shape
 
     shape = load_shape('hw_square')
     # one robot drives from (-0.6, 0) to (0, 0) at 0.03 m/s, then stands still
@@ -76,8 +77,8 @@ def test_the_live_settle_check_is_the_one_the_metrics_use():
     """hil_demo stops a run when eq. 5.4 has held for the hold window on the record so
     far; the metrics of that same record then give a settling time (the two once
     disagreed and a settled run reported none). A robot the camera lost is not settled."""
-    from swarm_mission.goals import Goal
-    from swarm_mission.shapes import load_shape
+    from swarm_common.goals import Goal
+    from swarm_common.shapes import load_shape
 
     shape = load_shape('hw_square')
     track = [(t, min(-0.6 + 0.03 * t, 0.0), 0.0) for t in np.arange(0.0, 40.0, 0.1)]

@@ -199,7 +199,7 @@ def test_bad_use_is_refused_in_one_line(tmp_path: pathlib.Path):
 
 def test_the_recording_qos_is_the_swarm_profile_made_compatible():
     from swarm_bringup.bag import DEFAULT_QOS, recording_qos
-    from swarm_mission import qos
+    from swarm_common import qos
 
     # Latched shape and goals: transient local, so the recorder gets the current ones.
     assert recording_qos('/swarm/goals') == qos.LATCHED

@@ -9,7 +9,7 @@ import pytest
 
 from swarm_bringup.launch_arguments import ARGUMENTS, plan_from_arguments
 from swarm_bringup.scenario import LaunchError
-from swarm_sim.fleet import load_fleet
+from swarm_common.fleet import load_fleet
 
 ROOT = pathlib.Path(__file__).resolve().parents[3]
 CONFIG = ROOT / 'ros2_ws' / 'src' / 'swarm_bringup' / 'config'

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from swarm_agent.dsdv import RouteEntry
+from swarm_common.shapes import load_shape
 from swarm_eval import fault_cases, fault_probes, fault_report, fault_ros, fault_study
-from swarm_mission.shapes import load_shape
 from swarm_sim.headless import HeadlessSwarm, Scenario
 
 ROW_KEYS = {'case', 'seed', 'fraction_inside', 'goals_claimed', 'goals_reached',
@@ -118,7 +118,7 @@ def test_the_fault_plan_becomes_launcher_flags(tmp_path):
 
 def _synthetic_ros_run(run_dir):
     """4 robots on the 8 m square (0-2 beacons); beacon 2 removed at 3 s, range 3 m at 2 s."""
-    from swarm_sim.fleet import RobotSpec, save_fleet
+    from swarm_common.fleet import RobotSpec, save_fleet
 
     (run_dir / 'logs').mkdir(parents=True)
     (run_dir / 'logs' / 'sim.log').write_text('[INFO] fine\n')

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from swarm_bridge import emulator, protocol, xbee
 from swarm_bridge.bridge import Bridge
-from swarm_bridge.fleet import load_fleet
+from swarm_common.fleet import load_fleet
 
 FUZZ = settings(max_examples=200, deadline=None,
                 suppress_health_check=[HealthCheck.too_slow])

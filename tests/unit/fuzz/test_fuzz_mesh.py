@@ -29,8 +29,8 @@ from swarm_agent.mesh_messages import (
 )
 from swarm_agent.packet import BROADCAST, Kind, MAX_PAYLOAD, Packet
 from swarm_agent.wire import Advert, INFINITE_HOPS, WireError
-from swarm_mission.goals import Goal
-from swarm_mission.shapes import load_shape
+from swarm_common.goals import Goal
+from swarm_common.shapes import load_shape
 
 FUZZ = settings(max_examples=150, deadline=None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture,

@@ -13,7 +13,7 @@ from hypothesis import example, given, HealthCheck, settings
 from hypothesis import strategies as st
 
 from swarm_agent.mesh_messages import CostRow, MeshMessageError, NeighbourInfo
-from swarm_mission.shapes import load_shape, ShapeError
+from swarm_common.shapes import load_shape, ShapeError
 
 FUZZ = settings(max_examples=150, deadline=None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture])

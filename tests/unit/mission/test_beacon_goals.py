@@ -12,6 +12,14 @@ import numpy as np
 import pytest
 from shapely.geometry import box, LineString, Polygon
 
+from swarm_common.goals import (
+    Goal,
+    goal_positions,
+    goals_to_json,
+    PartitionError,
+)
+from swarm_common.robot_types import load_robot_types
+from swarm_common.shapes import load_shape, Shape
 from swarm_mission.beacon_goals import (
     any_placement_serves,
     beacons_needed,
@@ -20,16 +28,8 @@ from swarm_mission.beacon_goals import (
     REACH,
     select_beacon_goals,
 )
-from swarm_mission.goals import (
-    Goal,
-    goal_positions,
-    goals_to_json,
-    PartitionError,
-)
 from swarm_mission.mission import Mission, MissionConfig, morph_sequence
 from swarm_mission.partition import partition
-from swarm_mission.robot_types import load_robot_types
-from swarm_mission.shapes import load_shape, Shape
 
 RADII = {t: r.coverage_radius for t, r in load_robot_types().items()}
 RANGE_M = 25.0                                   # thesis 4.1

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import shapely
 
+from swarm_common.shapes import load_shape
 from swarm_mission.contour import (
     contour_area,
     contour_center,
@@ -17,7 +18,6 @@ from swarm_mission.contour import (
     sample_rings,
     winding_number,
 )
-from swarm_mission.shapes import load_shape
 
 
 @pytest.mark.parametrize('name', ['thesis_shape_1', 'thesis_shape_3', 'table43_4'])

@@ -7,14 +7,14 @@ import math
 import pytest
 from shapely.geometry import box
 
+from swarm_common.robot_types import load_robot_types
+from swarm_common.shapes import load_shape, Shape, shape_from_polygon, ShapeError
 from swarm_mission.coverability import (
     check_coverable,
     coverability_problem,
     required_area,
 )
 from swarm_mission.mission import Mission, MissionConfig
-from swarm_mission.robot_types import load_robot_types
-from swarm_mission.shapes import load_shape, Shape, shape_from_polygon, ShapeError
 
 RADII = {t: r.coverage_radius for t, r in load_robot_types().items()}   # 0.15 / 0.3 / 0.5 m
 THESIS = {1: 20, 2: 20, 3: 10}

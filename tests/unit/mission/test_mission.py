@@ -5,6 +5,8 @@ import math
 import numpy as np
 import pytest
 
+from swarm_common.robot_types import load_robot_types
+from swarm_common.shapes import load_shape, ShapeError
 from swarm_mission.mission import (
     load_sequence,
     Mission,
@@ -12,8 +14,6 @@ from swarm_mission.mission import (
     morph_sequence,
     parse_morph,
 )
-from swarm_mission.robot_types import load_robot_types
-from swarm_mission.shapes import load_shape, ShapeError
 
 RADII = {t: r.coverage_radius for t, r in load_robot_types().items()}
 

@@ -9,9 +9,11 @@ import pytest
 from shapely.geometry import box
 from shapely.geometry import Point as ShapelyPoint
 
+from swarm_common.goals import goal_positions, goal_radii, placement_violations
+from swarm_common.robot_types import default_type_counts, load_robot_types
+from swarm_common.shapes import load_shape, Shape, ShapeError
 from swarm_mission.bubble_packing import auto_spacing, BubbleConfig, interbubble_force
 from swarm_mission.fractals import schedule_offset, zeta_areas
-from swarm_mission.goals import goal_positions, goal_radii, placement_violations
 from swarm_mission.mission import MissionConfig
 from swarm_mission.partition import (
     load_partition_config,
@@ -19,8 +21,6 @@ from swarm_mission.partition import (
     PartitionConfig,
     PartitionError,
 )
-from swarm_mission.robot_types import default_type_counts, load_robot_types
-from swarm_mission.shapes import load_shape, Shape, ShapeError
 
 RADII = {t: r.coverage_radius for t, r in load_robot_types().items()}
 SWARM = default_type_counts(50)          # thesis 20:20:10

@@ -2,7 +2,7 @@
 
 import pytest
 
-from swarm_mission.robot_types import (
+from swarm_common.robot_types import (
     default_type_counts,
     load_robot_types,
     parse_type_counts,

@@ -8,8 +8,8 @@ import pytest
 import shapely
 from shapely.geometry import Polygon
 
+from swarm_common.robot_types import default_type_counts, load_robot_types
 from swarm_mission.coverability import coverability_problem
-from swarm_mission.robot_types import default_type_counts, load_robot_types
 from swarm_mission.shape_gen import (
     AREA_PER_AGENT,
     EDGE_CLEARANCE,

@@ -1,4 +1,4 @@
-"""Shape loading and validation (swarm_mission.shapes, builtin_shapes)."""
+"""Shape loading and validation (swarm_common.shapes, builtin_shapes)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import pytest
 from shapely.geometry import Polygon
 from shapely.ops import unary_union
 
-from swarm_mission.builtin_shapes import builtin_obstacles, TABLE43_LENGTHS
-from swarm_mission.shapes import builtin_shape_names, load_shape, shape_from_rings, ShapeError
+from swarm_common.builtin_shapes import builtin_obstacles, TABLE43_LENGTHS
+from swarm_common.shapes import builtin_shape_names, load_shape, shape_from_rings, ShapeError
 
 SQUARE = [[0, 0], [10, 0], [10, 10], [0, 10]]
 

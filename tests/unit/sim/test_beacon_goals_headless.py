@@ -13,7 +13,7 @@ from shapely import affinity
 from shapely.geometry import Polygon
 
 from swarm_agent.localization import Mode
-from swarm_mission.shapes import Shape
+from swarm_common.shapes import Shape
 from swarm_sim.headless import HeadlessSwarm, Scenario
 
 CHEVRON = Shape('chevron', affinity.translate(

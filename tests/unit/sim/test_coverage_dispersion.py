@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from shapely.geometry import box, Point
 
-from swarm_mission.shapes import Shape
+from swarm_common.shapes import Shape
 from swarm_sim.metrics import (
     change_metrics,
     coverage_dispersion,

@@ -12,7 +12,7 @@ import pytest
 pytest.importorskip('foxglove')
 websockets_client = pytest.importorskip('websockets.sync.client')
 
-from swarm_mission.goals import Goal  # noqa: E402
+from swarm_common.goals import Goal  # noqa: E402
 from swarm_sim import live_view as lv  # noqa: E402
 from swarm_sim.foxglove_view import LiveViewServer, to_scene_update  # noqa: E402
 

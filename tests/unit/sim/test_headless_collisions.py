@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pathlib
 
-from swarm_mission.shapes import load_shape
+from swarm_common.shapes import load_shape
 from swarm_sim.headless import HeadlessSwarm, Scenario
 
 SQUARE = pathlib.Path(__file__).resolve().parents[2] / 'data' / 'square_8m.json'

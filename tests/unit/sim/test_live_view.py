@@ -12,9 +12,9 @@ from shapely.geometry import box
 from shapely.geometry import Point as ShapelyPoint
 import yaml
 
-from swarm_mission.goals import Goal
-from swarm_mission.robot_types import TYPE_COLOURS
-from swarm_mission.shapes import Shape
+from swarm_common.goals import Goal
+from swarm_common.robot_types import TYPE_COLOURS
+from swarm_common.shapes import Shape
 from swarm_sim import live_view as lv
 
 LAYOUT = (pathlib.Path(__file__).resolve().parents[3]

@@ -11,8 +11,8 @@ pytest.importorskip('visualization_msgs')
 
 from visualization_msgs.msg import Marker  # noqa: E402
 
-from swarm_mission.goals import Goal  # noqa: E402
-from swarm_mission.robot_types import TYPE_COLOURS  # noqa: E402
+from swarm_common.goals import Goal  # noqa: E402
+from swarm_common.robot_types import TYPE_COLOURS  # noqa: E402
 from swarm_sim.markers import marker_count, MODE_COLOURS, swarm_markers, UNHEARD  # noqa: E402
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from shapely.geometry import box
 
-from swarm_mission.shapes import load_shape, Shape
+from swarm_common.shapes import load_shape, Shape
 from swarm_sim.headless import HeadlessSwarm, Scenario
 from swarm_sim.metrics import (
     bottleneck_value,

@@ -11,8 +11,8 @@ import pytest
 
 from swarm_agent.dsdv import DsdvConfig, DsdvRouter
 from swarm_agent.mission_radio import MeshListener, MISSION_RADIO_ID
-from swarm_mission.shapes import load_shape
-from swarm_sim.fleet import RobotSpec
+from swarm_common.fleet import RobotSpec
+from swarm_common.shapes import load_shape
 from swarm_sim.headless import HeadlessSwarm, Scenario, ScenarioError
 from swarm_sim.medium import MediumConfig, RadioMedium
 from swarm_sim.mission_mesh import MediumWithMission

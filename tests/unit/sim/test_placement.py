@@ -1,4 +1,4 @@
-"""Robots stand near, not at, their fleet positions (swarm_sim.fleet.place_fleet), and
+"""Robots stand near, not at, their fleet positions (swarm_common.fleet.place_fleet), and
 the brains start from the fleet positions with the placement error as their prior."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from shapely.geometry import box
 
-from swarm_mission.shapes import load_shape
-from swarm_sim.fleet import FleetError, place_fleet, PLACEMENT_STD_M, RobotSpec
+from swarm_common.fleet import FleetError, place_fleet, PLACEMENT_STD_M, RobotSpec
+from swarm_common.shapes import load_shape
 from swarm_sim.headless import HeadlessSwarm, Scenario
 
 SQUARE = pathlib.Path(__file__).resolve().parents[2] / 'data' / 'square_8m.json'

@@ -5,7 +5,7 @@ import os
 import pathlib
 import time
 
-from swarm_sim.shm import clean_stale_segments, mapped_shm_files
+from swarm_common.shm import clean_stale_segments, mapped_shm_files
 
 
 def _touch(path: pathlib.Path, age_s: float, size: int = 0) -> None:

@@ -10,8 +10,8 @@ import pytest
 pytest.importorskip('tf2_msgs')
 
 from swarm_agent.conversions import yaw_of  # noqa: E402
+from swarm_common.fleet import RobotSpec  # noqa: E402
 from swarm_sim.conversions import stamp_of, truth_tf  # noqa: E402
-from swarm_sim.fleet import RobotSpec  # noqa: E402
 from swarm_sim.world_model import TruthSample  # noqa: E402
 
 

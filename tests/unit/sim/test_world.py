@@ -11,8 +11,8 @@ from shapely.geometry import box, Polygon
 pytest.importorskip('pybullet')
 
 from swarm_agent.dynamics import PointMassSwarm  # noqa: E402
-from swarm_mission.robot_types import GRAVITY, load_robot_types  # noqa: E402
-from swarm_sim.fleet import RobotSpec  # noqa: E402
+from swarm_common.fleet import RobotSpec  # noqa: E402
+from swarm_common.robot_types import GRAVITY, load_robot_types  # noqa: E402
 from swarm_sim.world import PybulletBackend, robot_geometry, WorldError  # noqa: E402
 
 TYPES = load_robot_types()

@@ -9,8 +9,8 @@ import pytest
 
 pytest.importorskip('pybullet')
 
-from swarm_mission.robot_types import GRAVITY, load_robot_types  # noqa: E402
-from swarm_sim.fleet import RobotSpec  # noqa: E402
+from swarm_common.fleet import RobotSpec  # noqa: E402
+from swarm_common.robot_types import GRAVITY, load_robot_types  # noqa: E402
 from swarm_sim.metrics import SeparationTracker  # noqa: E402
 from swarm_sim.world import PybulletBackend  # noqa: E402
 

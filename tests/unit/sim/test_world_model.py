@@ -15,8 +15,8 @@ import pytest
 from shapely.geometry import box
 
 from swarm_agent.packet import BROADCAST, Packet
-from swarm_mission.robot_types import load_robot_types
-from swarm_sim.fleet import RobotSpec
+from swarm_common.fleet import RobotSpec
+from swarm_common.robot_types import load_robot_types
 from swarm_sim.medium import MediumConfig, RadioMedium
 from swarm_sim.physics import PhysicsBackend, PointMassBackend
 from swarm_sim.world_model import World, WorldConfig
@@ -227,8 +227,8 @@ def test_a_bad_setting_is_refused_with_its_name():
 
 def test_the_evaluator_and_sim_node_build_the_same_world(tmp_path):
     """HeadlessSwarm runs a World over point masses; sim_node's parameters build one too."""
-    from swarm_mission.shapes import load_shape
-    from swarm_sim.fleet import save_fleet
+    from swarm_common.fleet import save_fleet
+    from swarm_common.shapes import load_shape
     from swarm_sim.headless import HeadlessSwarm, Scenario
     from swarm_sim.sim_parameters import PARAMETERS, world_from_parameters
 

@@ -16,7 +16,7 @@ from swarm_agent.brain import AgentBrain, BrainConfig, BrainConfigError
 from swarm_agent.localization import LocalizationConfig
 from swarm_agent.lqr import design_lqr
 from swarm_agent.parameters import configured
-from swarm_mission.robot_types import (
+from swarm_common.robot_types import (
     GRAVITY,
     load_lqr_design,
     load_robot_types,
@@ -38,7 +38,7 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
 
     ``initial_position`` is the robot's deployment prior, the position it was configured
     to stand at, and ``initial_position_std`` (m per axis) its stated uncertainty (the
-    placement error, ``swarm_sim.fleet.place_fleet``); None keeps the localization
+    placement error, ``swarm_common.fleet.place_fleet``); None keeps the localization
     config's. The estimate becomes the robot's own with its first GPS or trilateration fix.
     ``settings`` are generated parameters (``swarm_agent.parameters``, dotted names) set
     on the brain's configuration last; ParameterError names a bad one.

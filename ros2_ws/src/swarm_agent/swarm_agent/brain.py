@@ -58,10 +58,10 @@ from swarm_agent.mesh_messages import (
 from swarm_agent.packet import Kind, Packet
 from swarm_agent.parameters import tunable
 from swarm_agent.setpoint import avoid_collisions, SetpointParams, velocity_setpoint
+from swarm_common.goals import Goal
+from swarm_common.robot_types import load_robot_types, RobotType
+from swarm_common.shapes import Shape
 from swarm_mission.contour import sample_boundary
-from swarm_mission.goals import Goal
-from swarm_mission.robot_types import load_robot_types, RobotType
-from swarm_mission.shapes import Shape
 
 LOG = logging.getLogger(__name__)
 

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from swarm_mission.robot_types import GRAVITY, RobotType
+from swarm_common.robot_types import GRAVITY, RobotType
 
 
 class PointMassSwarm:

@@ -21,7 +21,7 @@ import math
 import numpy as np
 from scipy.linalg import solve_continuous_are
 
-from swarm_mission.robot_types import LqrDesign, RobotType
+from swarm_common.robot_types import LqrDesign, RobotType
 
 
 @dataclass(frozen=True)

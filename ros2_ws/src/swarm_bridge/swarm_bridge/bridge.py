@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import math
 
 from swarm_bridge import protocol, xbee
-from swarm_bridge.fleet import Robot
+from swarm_common.fleet import RobotSpec
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,7 @@ class Event:
 class RobotLink:
     """What the bridge knows about one robot."""
 
-    robot: Robot
+    robot: RobotSpec
     setpoint: tuple[float, float] | None = None
     setpoint_time: float = -math.inf
     pose: tuple[float, float, float] | None = None
@@ -81,10 +81,10 @@ class RobotLink:
 class Bridge:
     """Agents' setpoints to XBee frames and board statuses back; see the module doc."""
 
-    def __init__(self, robots: list[Robot], params: BridgeParams | None = None) -> None:
+    def __init__(self, robots: list[RobotSpec], params: BridgeParams | None = None) -> None:
         self.params = params or BridgeParams()
-        self.links = {r.agent_id: RobotLink(r) for r in robots}
-        self._by_address = {r.address: r.agent_id for r in robots}
+        self.links = {r.id: RobotLink(r) for r in robots}
+        self._by_address = {r.address: r.id for r in robots}
         self.decoder = xbee.FrameDecoder()
         self.counters: Counter = Counter()
         self.events: list[Event] = []
@@ -210,13 +210,13 @@ class Bridge:
         link.heard_time = now
         if link.silent:
             link.silent = False
-            self._clear(f'silent{link.robot.agent_id}',
-                        f'agent {link.robot.agent_id}: board answering again')
+            self._clear(f'silent{link.robot.id}',
+                        f'agent {link.robot.id}: board answering again')
 
     # -- outputs -----------------------------------------------------------------------
     def _frame(self, link: RobotLink, message: protocol.Message, now: float) -> bytes:
         self._frame_id = self._frame_id % 255 + 1
-        self._pending[self._frame_id] = link.robot.agent_id
+        self._pending[self._frame_id] = link.robot.id
         link.seq = (link.seq + 1) & 0xFF
         if link.first_sent_time is None:
             link.first_sent_time = now
@@ -258,8 +258,8 @@ class Bridge:
         link.silent = True
         link.counters['silences'] += 1
         self.counters['silent_boards'] += 1
-        self._report(f'silent{link.robot.agent_id}',
-                     f'agent {link.robot.agent_id}: board {link.robot.address_hex} stopped '
+        self._report(f'silent{link.robot.id}',
+                     f'agent {link.robot.id}: board {link.robot.address_hex} stopped '
                      f'answering (nothing for {now - since:.1f} s)')
 
     def stop_all(self) -> bytes:

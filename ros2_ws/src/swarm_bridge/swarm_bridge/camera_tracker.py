@@ -45,7 +45,7 @@ from scipy.optimize import linear_sum_assignment
 
 from swarm_bridge.arena_calibration import Calibration
 from swarm_bridge.camera_render import CoverGeometry
-from swarm_bridge.fleet import Robot
+from swarm_common.fleet import RobotSpec
 
 UNKNOWN = 254      # label of coloured pixels of no fleet colour
 NONE = 255         # label of uncoloured pixels
@@ -104,7 +104,7 @@ class FrameResult:
 
 @dataclass
 class _Track:
-    robot: Robot
+    robot: RobotSpec
     x: float = math.nan
     y: float = math.nan
     vx: float = 0.0
@@ -144,7 +144,7 @@ def hue_lut(hues: Sequence[float], tolerance: float) -> np.ndarray:
 class CameraTracker:
     """Robots' poses from overhead images; see the module docstring."""
 
-    def __init__(self, robots: Sequence[Robot], colors: dict[str, tuple[int, int, int]],
+    def __init__(self, robots: Sequence[RobotSpec], colors: dict[str, tuple[int, int, int]],
                  calibration: Calibration, config: TrackerConfig = TrackerConfig(),
                  geometry: CoverGeometry | None = None,
                  initial_poses: dict[int, tuple[float, float]] | None = None) -> None:
@@ -161,11 +161,11 @@ class CameraTracker:
             group = [r for r in robots if r.color == name]
             if len({(r.type, r.radius) for r in group}) > 1:
                 raise TrackerError(
-                    f'robots {[r.agent_id for r in group]} share the colour {name} but not '
+                    f'robots {[r.id for r in group]} share the colour {name} but not '
                     'their type and radius; give each type its own cover colour')
             self.radius[name] = group[0].radius
         self.lut = hue_lut([hue_of(colors[n]) for n in self.names], config.hue_tolerance)
-        self.tracks = {r.agent_id: _Track(r) for r in robots}
+        self.tracks = {r.id: _Track(r) for r in robots}
         for k, (x, y) in (initial_poses or {}).items():
             if k in self.tracks:
                 self.tracks[k].x, self.tracks[k].y = float(x), float(y)
@@ -391,8 +391,8 @@ class CameraTracker:
                 tr.vx += a * ((d.x - tr.x) / dt - tr.vx)
                 tr.vy += a * ((d.y - tr.y) / dt - tr.vy)
             tr.x, tr.y, tr.t, tr.seen = d.x, d.y, stamp, True
-            d.agent_id = tr.robot.agent_id
-            result.poses[tr.robot.agent_id] = (d.x, d.y, d.yaw)
+            d.agent_id = tr.robot.id
+            result.poses[tr.robot.id] = (d.x, d.y, d.yaw)
             used += 1
         return len(dets) - used
 

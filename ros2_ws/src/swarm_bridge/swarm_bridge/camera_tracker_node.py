@@ -33,10 +33,10 @@ from sensor_msgs.msg import Image
 
 from swarm_bridge.arena_calibration import Calibration, CalibrationError
 from swarm_bridge.camera_tracker import annotate, CameraTracker, TrackerConfig
-from swarm_bridge.fleet import load_cover_colors, load_fleet
 from swarm_bridge.image_msgs import image_from_msg, image_to_msg, ImageError
-from swarm_mission import qos
-from swarm_mission.node_runner import run_node
+from swarm_common import qos
+from swarm_common.fleet import initial_poses, load_cover_colors, load_fleet
+from swarm_common.ros_support import run_node
 
 DEFAULTS = TrackerConfig()
 PARAMETERS = {
@@ -77,15 +77,10 @@ class CameraTrackerNode(Node):
             raise CalibrationError('no calibration_file: run camera_calibrate --source ... '
                                    '--out FILE first and pass -p calibration_file:=FILE')
         calibration = Calibration.load(p['calibration_file'])
-        robots = load_fleet(p['fleet_file'] or None)
+        robots = load_fleet(p['fleet_file'] or None, hardware=True)
         flat = [float(v) for v in p['initial_poses']]
-        initial = None
-        if len(flat) > 1:
-            if len(flat) != 3 * len(robots):
-                raise ValueError(f'initial_poses holds {len(flat)} numbers; give x,y,yaw_deg '
-                                 f'for each of the {len(robots)} robots')
-            initial = {r.agent_id: (flat[3 * i], flat[3 * i + 1])
-                       for i, r in enumerate(robots)}
+        initial = ({r.id: pose[:2] for r, pose in zip(robots, initial_poses(flat, robots))}
+                   if len(flat) > 1 else None)
         self.tracker = CameraTracker(
             robots, load_cover_colors(p['fleet_file'] or None), calibration,
             TrackerConfig(saturation_min=int(p['saturation_min']),
@@ -94,15 +89,15 @@ class CameraTrackerNode(Node):
                           max_speed=float(p['max_speed']), gate_m=float(p['gate_m']),
                           missing_timeout_s=float(p['missing_timeout'])),
             initial_poses=initial)
-        self.radius = {r.agent_id: r.radius for r in robots}
+        self.radius = {r.id: r.radius for r in robots}
         self.counts = {'frames': 0, 'bad_frames': 0, 'unknown_covers': 0, 'ambiguous': 0,
                        'incomplete': 0}
         self._missing: set[int] = set()
         self._problem: str | None = None
         self._capture = None
         sensor = QoSProfile(**qos.SENSOR)
-        self._pose_pubs = {r.agent_id: self.create_publisher(
-            PoseStamped, f'/agent_{r.agent_id}/pose', sensor) for r in robots}
+        self._pose_pubs = {r.id: self.create_publisher(
+            PoseStamped, f'/agent_{r.id}/pose', sensor) for r in robots}
         self._annotated = (self.create_publisher(Image, 'camera/annotated',
                                                  QoSProfile(**IMAGE_QOS))
                            if p['publish_annotated'] else None)

@@ -30,7 +30,7 @@ import time
 import tty
 
 from swarm_bridge import protocol, xbee
-from swarm_bridge.fleet import load_fleet
+from swarm_common.fleet import load_fleet
 
 FIRMWARE_MAX_FRAME_DATA = 18   # SWP_MAX_FRAME_DATA
 BASE_RADIUS_M = 0.06           # wheel contact to robot centre (assumed: the thesis names none)
@@ -300,7 +300,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--fleet', default=None, help='fleet YAML (default: package config)')
     parser.add_argument('--period', type=float, default=0.005, help='loop period, s')
     args = parser.parse_args(argv)
-    robots = load_fleet(args.fleet)
+    robots = load_fleet(args.fleet, hardware=True)
     emulator = PtyEmulator(EmulatedRadio.for_fleet([r.address for r in robots]))
     print(f'robot_emulator: {len(robots)} boards on {emulator.port}', flush=True)
     try:

@@ -36,7 +36,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 
 from swarm_agent.agent_node import AgentNode, make_executor
 from swarm_agent.conversions import yaw_of
-from swarm_mission.node_runner import run_node
+from swarm_common.ros_support import run_node
 
 PARAMETERS = {
     'velocity_window': (0.5, 'Camera displacement over this many seconds is the velocity'),

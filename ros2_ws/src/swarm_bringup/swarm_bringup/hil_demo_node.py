@@ -79,7 +79,7 @@ class Monitor:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import QoSProfile
 
-        from swarm_mission import qos
+        from swarm_common import qos
         from swarm_msgs.msg import AgentState, FormationShape
 
         self.context = rclpy.Context()
@@ -145,23 +145,23 @@ def hil_poses() -> tuple[dict, list[tuple[float, float, float]]]:
     """The hil_world parameters of config/hil.yaml and the initial poses in fleet order."""
     import yaml
 
-    from swarm_bridge.fleet import initial_poses, load_fleet
+    from swarm_common.fleet import initial_poses, load_fleet
 
     params = yaml.safe_load(bridge_config('hil.yaml').read_text())['hil_world']['ros__parameters']
-    robots = load_fleet(params['fleet_file'] or None)
-    return params, initial_poses([float(v) for v in params['initial_poses']], len(robots))
+    robots = load_fleet(params['fleet_file'] or None, hardware=True)
+    return params, initial_poses([float(v) for v in params['initial_poses']], robots)
 
 
 def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: int) -> dict:
     """Run one shape through the ROS processes; return its metrics."""
-    from swarm_bridge.fleet import load_fleet
+    from swarm_common.fleet import load_fleet
+    from swarm_common.robot_types import load_robot_types
+    from swarm_common.shapes import load_shape
     from swarm_mission.partition import partition
-    from swarm_mission.robot_types import load_robot_types
-    from swarm_mission.shapes import load_shape
 
     shape = load_shape(name)
     params, poses = hil_poses()
-    robots = load_fleet(params['fleet_file'] or None)
+    robots = load_fleet(params['fleet_file'] or None, hardware=True)
     types = load_robot_types(bridge_config('hw_robot_types.yaml'))
     radii = {t: r.coverage_radius for t, r in types.items()}
     counts = counts_of(robots)
@@ -174,7 +174,7 @@ def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: in
                PYTHONUNBUFFERED='1')
     os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     children = Children(run_dir / 'logs', env)
-    ids = [r.agent_id for r in robots]
+    ids = [r.id for r in robots]
     real = args.camera not in ('truth', 'sim')
     monitor = Monitor(ids, '/agent_{k}/pose' if real else '/truth/agent_{k}/pose')
     outcome = 'duration'

@@ -31,12 +31,12 @@ import contextlib
 import pathlib
 import sys
 
+from swarm_common.robot_types import RobotTypeError
+from swarm_common.shapes import ShapeError
 from swarm_eval.scenario import build_scenario, ScenarioSpec
 from swarm_eval.trials import dask_client, dask_trials, DaskError, local_trials
 from swarm_mission.mission import REMESH
 from swarm_mission.partition import PartitionError
-from swarm_mission.robot_types import RobotTypeError
-from swarm_mission.shapes import ShapeError
 from swarm_sim import plots
 from swarm_sim.headless import ScenarioError
 from swarm_sim.report import run_report, write_metrics

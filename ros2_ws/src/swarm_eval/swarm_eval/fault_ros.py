@@ -14,6 +14,8 @@ from typing import Any
 import numpy as np
 
 from swarm_bringup import scenario as launcher
+from swarm_common.robot_types import RobotTypeError
+from swarm_common.shapes import ShapeError
 from swarm_eval.fault_cases import (
     fault_cases,
     fault_plan,
@@ -32,8 +34,6 @@ from swarm_eval.fault_probes import (
 from swarm_eval.fault_report import markdown_table, plot, summarise, write_json
 from swarm_eval.paths import repo_root
 from swarm_mission.partition import PartitionError
-from swarm_mission.robot_types import RobotTypeError
-from swarm_mission.shapes import ShapeError
 from swarm_sim.headless import ScenarioError
 from swarm_sim.medium import apply_setting, MediumConfig, RadioMedium
 
@@ -181,8 +181,8 @@ def ros_row(case: dict, config: dict, seed: int, run_dir: pathlib.Path, plan: di
     """The study's row of one ROS run, from its metrics.json, record.npz and logs."""
     from types import SimpleNamespace
 
-    from swarm_mission.shapes import load_shape
-    from swarm_sim.fleet import load_fleet
+    from swarm_common.fleet import load_fleet
+    from swarm_common.shapes import load_shape
 
     row: dict[str, Any] = {'case': case['name'], 'kind': case['kind'],
                            'value': case['value'], 'seed': seed, 'ros': True,

@@ -39,6 +39,8 @@ import pathlib
 import sys
 from typing import Any
 
+from swarm_common.robot_types import RobotTypeError
+from swarm_common.shapes import ShapeError
 from swarm_eval.fault_cases import (
     build_swarm,
     configure_fault,
@@ -58,8 +60,6 @@ from swarm_eval.fault_probes import (
 from swarm_eval.fault_report import markdown_table, plot, summarise, write_json
 from swarm_eval.fault_ros import ROS_CASES, run_ros_study
 from swarm_mission.partition import PartitionError
-from swarm_mission.robot_types import RobotTypeError
-from swarm_mission.shapes import ShapeError
 from swarm_sim.headless import ScenarioError
 
 

@@ -51,8 +51,8 @@ import sys
 import numpy as np
 
 from swarm_agent.localization import Localizer, Mode
-from swarm_mission.robot_types import default_type_counts
-from swarm_mission.shapes import load_shape, ShapeError
+from swarm_common.robot_types import default_type_counts
+from swarm_common.shapes import load_shape, ShapeError
 from swarm_sim.headless import HeadlessSwarm, Scenario, ScenarioError, TrialRecord
 from swarm_sim.sensors import TrilaterationFixModel
 

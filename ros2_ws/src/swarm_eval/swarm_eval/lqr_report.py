@@ -50,7 +50,7 @@ from swarm_agent.lqr import (  # noqa: E402
     LqrGains,
     step_response,
 )
-from swarm_mission.robot_types import (  # noqa: E402
+from swarm_common.robot_types import (  # noqa: E402
     load_lqr_design,
     load_robot_types,
     LqrDesign,

@@ -30,6 +30,13 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
+from swarm_common.robot_types import (  # noqa: E402
+    default_type_counts,
+    load_robot_types,
+    parse_type_counts,
+    RobotTypeError,
+)
+from swarm_common.shapes import load_shape, ShapeError  # noqa: E402
 from swarm_mission.bubble_packing import BubbleConfig  # noqa: E402
 from swarm_mission.partition import (  # noqa: E402
     METHODS,
@@ -37,13 +44,6 @@ from swarm_mission.partition import (  # noqa: E402
     PartitionConfig,
     PartitionError,
 )
-from swarm_mission.robot_types import (  # noqa: E402
-    default_type_counts,
-    load_robot_types,
-    parse_type_counts,
-    RobotTypeError,
-)
-from swarm_mission.shapes import load_shape, ShapeError  # noqa: E402
 
 DEFAULT_SHAPES = ('circle_314,thesis_shape_1,thesis_shape_2,thesis_shape_3,thesis_shape_4,'
                   'table43_1,table43_2,table43_3,table43_4')

@@ -33,9 +33,9 @@ import sys
 
 import numpy as np
 
+from swarm_common.robot_types import default_type_counts
+from swarm_common.shapes import load_shape, ShapeError
 from swarm_mission.mission import parse_morph, SequenceStep
-from swarm_mission.robot_types import default_type_counts
-from swarm_mission.shapes import load_shape, ShapeError
 from swarm_sim import plots
 from swarm_sim.headless import HeadlessSwarm, Scenario
 from swarm_sim.metrics import CHANGE_WINDOW_S, shape_response

@@ -25,17 +25,17 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from swarm_mission.goals import goal_positions, goals_to_json  # noqa: E402
-from swarm_mission.mesh_quality import mesh_triangles  # noqa: E402
-from swarm_mission.partition import load_partition_config, METHODS, partition, PartitionError  # noqa: E402
-from swarm_mission.robot_types import (  # noqa: E402
+from swarm_common.goals import goal_positions, goals_to_json  # noqa: E402
+from swarm_common.robot_types import (  # noqa: E402
     default_type_counts,
     load_robot_types,
     parse_type_counts,
     RobotTypeError,
     TYPE_COLOURS,
 )
-from swarm_mission.shapes import load_shape, ShapeError  # noqa: E402
+from swarm_common.shapes import load_shape, ShapeError  # noqa: E402
+from swarm_mission.mesh_quality import mesh_triangles  # noqa: E402
+from swarm_mission.partition import load_partition_config, METHODS, partition, PartitionError  # noqa: E402
 
 
 def plot_partition(shape, goals, path: pathlib.Path, title: str) -> None:

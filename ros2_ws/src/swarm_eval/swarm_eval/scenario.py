@@ -15,9 +15,9 @@ from dataclasses import dataclass, field
 
 from swarm_bringup.launch_plan import default_beacons
 from swarm_bringup.scenario import check_before_end, LaunchError, parse_robot_fault
+from swarm_common.robot_types import default_type_counts, parse_type_counts
+from swarm_common.shapes import load_shape
 from swarm_mission.mission import load_sequence, parse_morph
-from swarm_mission.robot_types import default_type_counts, parse_type_counts
-from swarm_mission.shapes import load_shape
 from swarm_sim.headless import HeadlessSwarm, Scenario, ScenarioError, TrialRecord
 from swarm_sim.medium import MediumConfig
 from swarm_sim.metrics import SETTLE_HOLD_S

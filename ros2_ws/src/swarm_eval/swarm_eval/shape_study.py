@@ -31,10 +31,10 @@ import shapely
 from shapely.geometry import LineString
 
 from swarm_agent.localization import Mode
+from swarm_common.goals import PartitionError
+from swarm_common.robot_types import load_robot_types
+from swarm_common.shapes import Shape, ShapeError
 from swarm_mission.coverability import coverability_problem
-from swarm_mission.goals import PartitionError
-from swarm_mission.robot_types import load_robot_types
-from swarm_mission.shapes import Shape, ShapeError
 from swarm_sim.headless import HeadlessSwarm, Scenario, TrialRecord
 from swarm_sim.medium import MediumConfig
 from swarm_sim.metrics import inside_mask, SETTLE_SPEED

@@ -36,6 +36,7 @@ import pathlib
 import subprocess
 import sys
 
+from swarm_common.robot_types import default_type_counts, RobotTypeError
 from swarm_eval.paths import repo_root
 from swarm_eval.shape_study import (
     markdown_table,
@@ -46,7 +47,6 @@ from swarm_eval.shape_study import (
     summary,
     summary_table,
 )
-from swarm_mission.robot_types import default_type_counts, RobotTypeError
 from swarm_mission.shape_gen import KINDS, shape_json, ShapeGenError, study_shapes
 from swarm_sim.report import dumps
 

@@ -24,8 +24,8 @@ import time
 
 import numpy as np
 
-from swarm_mission.robot_types import default_type_counts, GRAVITY, load_robot_types
-from swarm_sim.fleet import random_fleet
+from swarm_common.fleet import random_fleet
+from swarm_common.robot_types import default_type_counts, GRAVITY, load_robot_types
 from swarm_sim.world import DEFAULT_PHYSICS_HZ, PybulletBackend
 
 

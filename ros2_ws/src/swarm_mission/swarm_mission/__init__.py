@@ -1,5 +1,6 @@
-"""Formation shapes, bubble packing and fractal partitioning, and the mission node.
+"""The mission: partitioning a shape into typed goal states and the mission node.
 
-Formation shapes and their partitioning into typed goal states (bubble packing,
-randomized fractals), mesh quality metrics, and the mission node.
+Bubble packing and randomized fractals (thesis 3.2), the goals' mesh quality, beacon
+goals, shape generation for studies and the mission node that publishes them; the shape
+and goal types it plans on live in swarm_common.
 """

@@ -38,7 +38,7 @@ from scipy.spatial import cKDTree
 import shapely
 from shapely.geometry import Polygon
 
-from swarm_mission.goals import Goal, goal_positions, PartitionError
+from swarm_common.goals import Goal, goal_positions, PartitionError
 
 MIN_BEACONS = 3       # beacons a 2-D trilateration needs (thesis 3.1.1)
 REACH = 0.9           # fraction of the radio range a goal's beacons may be away

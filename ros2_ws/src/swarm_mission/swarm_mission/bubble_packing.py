@@ -71,8 +71,8 @@ import shapely
 from shapely.geometry import Point, Polygon
 from shapely.ops import nearest_points
 
+from swarm_common.goals import check_fits, PartitionError, placement_violations
 from swarm_mission.contour import sample_boundary
-from swarm_mission.goals import check_fits, PartitionError, placement_violations
 
 LOG = logging.getLogger(__name__)
 

@@ -15,7 +15,7 @@ A shape is refused, with one line naming the reason and the fix, when
   parts that robot cannot pass between inside the shape.
 
 ``coverability_problem`` returns the reason or None; ``check_coverable`` raises
-:class:`~swarm_mission.shapes.ShapeError` with it.
+:class:`~swarm_common.shapes.ShapeError` with it.
 """
 
 from __future__ import annotations
@@ -28,9 +28,9 @@ import shapely
 from shapely.geometry import box, MultiPolygon, Polygon
 from shapely.ops import nearest_points
 
-from swarm_mission.shapes import Shape, ShapeError
+from swarm_common.shapes import Shape, ShapeError
 
-WORKSPACE_HALF_SIZE = 50.0  # m, the thesis workspace (swarm_sim.fleet.random_fleet)
+WORKSPACE_HALF_SIZE = 50.0  # m, the thesis workspace (swarm_common.fleet.random_fleet)
 START_MARGIN = 1.0          # m, random_fleet keeps robots this far from obstacles
 AREA_TOLERANCE = 1e-6       # m^2, geometry noise below which a piece is ignored
 

@@ -23,7 +23,7 @@ from scipy.special import zeta
 import shapely
 from shapely.geometry import Polygon
 
-from swarm_mission.goals import check_fits, PartitionError
+from swarm_common.goals import check_fits, PartitionError
 
 
 @dataclass

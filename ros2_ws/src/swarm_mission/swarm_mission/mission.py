@@ -32,15 +32,15 @@ import pathlib
 
 import yaml
 
+from swarm_common.goals import Goal, PartitionError
+from swarm_common.shapes import load_shape, Shape, ShapeError
 from swarm_mission.beacon_goals import (
     any_placement_serves,
     check_localizable,
     select_beacon_goals,
 )
 from swarm_mission.coverability import check_coverable
-from swarm_mission.goals import Goal, PartitionError
 from swarm_mission.partition import METHODS, partition, PartitionResult
-from swarm_mission.shapes import load_shape, Shape, ShapeError
 
 LOG = logging.getLogger(__name__)
 

@@ -23,16 +23,16 @@ import time
 import numpy as np
 import yaml
 
+from swarm_common.goals import Goal, PartitionError
+from swarm_common.paths import package_file
+from swarm_common.shapes import Shape, ShapeError
 from swarm_mission.bubble_packing import bubble_pack, BubbleConfig
 from swarm_mission.fractals import FractalConfig, randomized_fractals
-from swarm_mission.goals import Goal, PartitionError
 from swarm_mission.mesh_quality import irregularities
-from swarm_mission.robot_types import package_config
-from swarm_mission.shapes import Shape, ShapeError
 
 LOG = logging.getLogger(__name__)
 METHODS = ('bubble', 'fractal')
-DEFAULT_CONFIG = package_config('partition.yaml')
+DEFAULT_CONFIG = package_file('swarm_mission', 'config/partition.yaml')
 
 __all__ = ['METHODS', 'PartitionConfig', 'PartitionError', 'PartitionResult',
            'load_partition_config', 'partition']
@@ -172,7 +172,7 @@ def partition(shape: Shape, type_counts: Mapping[int, int], radii: Mapping[int, 
     if method not in METHODS:
         raise PartitionError(f'unknown partition method {method!r}; use one of {METHODS}')
     if not isinstance(shape, Shape):
-        raise PartitionError(f'shape must be a swarm_mission.shapes.Shape, got '
+        raise PartitionError(f'shape must be a swarm_common.shapes.Shape, got '
                              f'{type(shape).__name__}')
     config = config or PartitionConfig()
     types = _check_swarm(type_counts, radii)

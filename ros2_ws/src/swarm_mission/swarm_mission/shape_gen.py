@@ -4,7 +4,7 @@ The thesis judges its methods on a handful of hand-picked contours (chapter 4); 
 own shape is always an unseen one. ``generate(kind, seed, n_agents)`` draws one shape of
 a kind, sized to the swarm as in the thesis (``AREA_PER_AGENT`` = 314 m^2 / 50 robots,
 about 6.3 m^2 a robot) and placed as the thesis shapes are (area centroid at the origin
-of the +/-50 m workspace in which ``swarm_sim.fleet.random_fleet`` scatters the robots):
+of the +/-50 m workspace in which ``swarm_common.fleet.random_fleet`` scatters the robots):
 
 =============  ====================================================================
 ``blob``       star-convex contour r(theta) = 1 + sum_k a_k cos(k theta + phi_k),
@@ -21,7 +21,7 @@ of the +/-50 m workspace in which ``swarm_sim.fleet.random_fleet`` scatters the 
                shape, at least 3 m from each other and from the shape
 =============  ====================================================================
 
-Every shape is a valid :class:`~swarm_mission.shapes.Shape` (built through
+Every shape is a valid :class:`~swarm_common.shapes.Shape` (built through
 ``shape_from_polygon``) of the target area (within 1e-6; the tests allow 10 %) that the
 thesis swarm of ``n_agents`` can cover (``swarm_mission.coverability``); a draw that is
 not is redrawn from the same generator, so a (kind, seed) pair always gives the same
@@ -39,10 +39,10 @@ import shapely
 from shapely import affinity
 from shapely.geometry import LineString, Point, Polygon
 
-from swarm_mission.builtin_shapes import THESIS_AREA
+from swarm_common.builtin_shapes import THESIS_AREA
+from swarm_common.robot_types import default_type_counts, load_robot_types
+from swarm_common.shapes import Shape, shape_from_polygon, ShapeError
 from swarm_mission.coverability import coverability_problem
-from swarm_mission.robot_types import default_type_counts, load_robot_types
-from swarm_mission.shapes import Shape, shape_from_polygon, ShapeError
 
 KINDS = ('blob', 'concave', 'spiral', 'holes', 'neck', 'obstacles')
 THESIS_AGENTS = 50

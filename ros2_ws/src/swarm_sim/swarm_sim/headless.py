@@ -28,10 +28,10 @@ import numpy as np
 from swarm_agent.agent_factory import make_brain
 from swarm_agent.brain import AgentBrain
 from swarm_agent.mission_radio import MeshListener
+from swarm_common.fleet import place_fleet, PLACEMENT_STD_M, random_fleet, RobotSpec
+from swarm_common.robot_types import load_robot_types
+from swarm_common.shapes import Shape
 from swarm_mission.mission import Mission, MissionConfig, SequenceStep
-from swarm_mission.robot_types import load_robot_types
-from swarm_mission.shapes import Shape
-from swarm_sim.fleet import place_fleet, PLACEMENT_STD_M, random_fleet, RobotSpec
 from swarm_sim.medium import MediumConfig, RadioMedium
 from swarm_sim.metrics import SETTLE_HOLD_S, trial_metrics
 from swarm_sim.mission_mesh import MediumWithMission
@@ -77,7 +77,7 @@ class Scenario:
     half_size: float = 50.0
     partition_seed: int | None = None
     # Robots stand this far (m per axis, Gaussian) from their fleet positions; the brains
-    # start from the fleet positions with this uncertainty (swarm_sim.fleet.place_fleet).
+    # start from the fleet positions with this uncertainty (swarm_common.fleet.place_fleet).
     placement_std_m: float = PLACEMENT_STD_M
     # Where the mission computer's radio stands (m); None: the first shape's centroid.
     mission_position: tuple[float, float] | None = None

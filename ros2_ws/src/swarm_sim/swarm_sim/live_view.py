@@ -22,7 +22,7 @@ ROS. ``live_view_node`` fills a ``SwarmView`` from the swarm's topics, and
 Every scene update deletes the previous entities first, so robots removed by a fault,
 goals of an older partition and broken links disappear. Type colours are those of the
 figures, the RViz markers and the pybullet bodies
-(``swarm_mission.robot_types.TYPE_COLOURS``).
+(``swarm_common.robot_types.TYPE_COLOURS``).
 """
 
 from __future__ import annotations
@@ -34,9 +34,9 @@ import math
 import numpy as np
 from shapely.geometry import Polygon
 
-from swarm_mission.goals import Goal
-from swarm_mission.robot_types import OTHER_COLOUR, TYPE_COLOURS
-from swarm_mission.shapes import Shape
+from swarm_common.goals import Goal
+from swarm_common.robot_types import OTHER_COLOUR, TYPE_COLOURS
+from swarm_common.shapes import Shape
 
 # Mode colours (AgentState.MODE_*), shared with swarm_sim.markers.
 MODE_NORMAL, MODE_LOST, MODE_RETURN_HOME = 0, 1, 2

@@ -14,7 +14,7 @@ it is testable without ROS. Namespaces, all in the ``map`` frame:
 ``links``     one line per radio link of the medium (line list).
 
 Type colours are those of the figures and the pybullet bodies
-(``swarm_mission.robot_types.TYPE_COLOURS``).
+(``swarm_common.robot_types.TYPE_COLOURS``).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from shapely.geometry import Polygon
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
-from swarm_mission.robot_types import OTHER_COLOUR
+from swarm_common.robot_types import OTHER_COLOUR
 from swarm_sim.live_view import (
     link_pairs,
     mode_colour,

@@ -47,8 +47,8 @@ import shapely
 from swarm_agent.costs import VisibilityGraph
 from swarm_agent.free_space import grow_obstacles
 from swarm_agent.setpoint import SetpointParams
+from swarm_common.shapes import Shape
 from swarm_mission.mesh_quality import epsilon_g, epsilon_t
-from swarm_mission.shapes import Shape
 
 SETTLE_SPEED = 0.01  # m/s, eq. 4.1
 SETTLE_HOLD_S = 30.0  # s the settled condition must hold before a run may end

@@ -25,7 +25,7 @@ import numpy as np
 import shapely
 from shapely.geometry import Point, Polygon
 
-from swarm_mission.robot_types import robot_type, RobotType, RobotTypeError
+from swarm_common.robot_types import robot_type, RobotType, RobotTypeError
 
 
 @runtime_checkable

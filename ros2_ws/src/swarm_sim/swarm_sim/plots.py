@@ -18,7 +18,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.spatial import Delaunay  # noqa: E402
 
-from swarm_mission.robot_types import TYPE_COLOURS  # noqa: E402
+from swarm_common.robot_types import TYPE_COLOURS  # noqa: E402
 
 MODE_NAMES = {0: 'NORMAL', 1: 'LOST', 2: 'RETURN_HOME'}
 

@@ -8,7 +8,7 @@ import pathlib
 
 import numpy as np
 
-from swarm_mission.robot_types import load_robot_types
+from swarm_common.robot_types import load_robot_types
 from swarm_sim import plots
 from swarm_sim.metrics import SETTLE_HOLD_S, trial_metrics
 

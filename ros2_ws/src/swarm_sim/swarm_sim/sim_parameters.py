@@ -10,9 +10,9 @@ import math
 
 import numpy as np
 
-from swarm_mission.robot_types import load_robot_types, RobotType
-from swarm_mission.shapes import load_shape
-from swarm_sim.fleet import load_fleet, place_fleet, PLACEMENT_STD_M, RobotSpec
+from swarm_common.fleet import load_fleet, place_fleet, PLACEMENT_STD_M, RobotSpec
+from swarm_common.robot_types import load_robot_types, RobotType
+from swarm_common.shapes import load_shape
 from swarm_sim.medium import MediumConfig, RadioMedium
 from swarm_sim.physics import make_backend
 from swarm_sim.world_model import World, WorldConfig
@@ -96,7 +96,7 @@ def world_from_parameters(p: dict) -> tuple[list[RobotSpec], dict[int, RobotType
     types = load_robot_types()
     obstacles = list(load_shape(p['shape']).obstacles) if p['shape'] else []
     # Where the robots really stand: near the fleet file's positions, which are all the
-    # agents know (swarm_sim.fleet.place_fleet, the same draw as headless).
+    # agents know (swarm_common.fleet.place_fleet, the same draw as headless).
     fleet = place_fleet(fleet, p['placement_std_m'], p['seed'],
                         radii=[types[r.type].coverage_radius for r in fleet],
                         obstacles=obstacles, half_size=p['half_size'])

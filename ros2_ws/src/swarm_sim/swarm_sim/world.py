@@ -89,7 +89,7 @@ import shapely
 from shapely.geometry import Polygon
 from shapely.geometry.polygon import orient
 
-from swarm_mission.robot_types import GRAVITY, OTHER_COLOUR, RobotType, TYPE_COLOURS
+from swarm_common.robot_types import GRAVITY, OTHER_COLOUR, RobotType, TYPE_COLOURS
 from swarm_sim.physics import check_world, WorldError
 from swarm_sim.terrain import (
     DEFAULT_CELL,

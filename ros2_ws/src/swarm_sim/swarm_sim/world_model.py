@@ -49,8 +49,8 @@ from shapely import affinity
 from shapely.geometry import Polygon
 
 from swarm_agent.packet import Packet
-from swarm_mission.robot_types import RobotType
-from swarm_mission.shapes import Shape
+from swarm_common.robot_types import RobotType
+from swarm_common.shapes import Shape
 from swarm_sim.medium import apply_setting, RadioMedium, RUNTIME_SETTINGS
 from swarm_sim.metrics import SeparationTracker, SETTLE_HOLD_S, settled_now, SettleTracker
 from swarm_sim.physics import PhysicsBackend
@@ -132,7 +132,7 @@ class World:
     def __init__(self, fleet, types: dict[int, RobotType], backend: PhysicsBackend,
                  config: WorldConfig, rng: np.random.Generator,
                  obstacles: Sequence[Polygon] = (), medium=None) -> None:
-        """``fleet`` where the robots stand (``swarm_sim.fleet.place_fleet``); ``medium``
+        """``fleet`` where the robots stand (``swarm_common.fleet.place_fleet``); ``medium``
         a ``RadioMedium`` (default: one of ``MediumConfig()`` drawing from ``rng``) or a
         medium that wraps one (``MediumWithMission``)."""
         config.check()

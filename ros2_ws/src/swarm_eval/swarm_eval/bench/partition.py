@@ -16,9 +16,9 @@ import sys
 
 import numpy as np
 
+from swarm_common.robot_types import default_type_counts, load_robot_types
+from swarm_common.shapes import load_shape
 from swarm_mission.partition import METHODS, partition
-from swarm_mission.robot_types import default_type_counts, load_robot_types
-from swarm_mission.shapes import load_shape
 
 
 def bench(n: int, shape_name: str = 'circle_314', repeats: int = 3,

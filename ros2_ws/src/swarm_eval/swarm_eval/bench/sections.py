@@ -89,10 +89,10 @@ def bench_partition_section(sizes: Sequence[int], repeats: int) -> list[dict]:
 
 def cost_setup(n: int, seed: int) -> dict:
     """Thesis workspace scaled to n agents: shape, obstacles, goals, agent starts."""
+    from swarm_common.fleet import random_fleet
+    from swarm_common.robot_types import default_type_counts, load_robot_types
+    from swarm_common.shapes import load_shape
     from swarm_mission.partition import partition
-    from swarm_mission.robot_types import default_type_counts, load_robot_types
-    from swarm_mission.shapes import load_shape
-    from swarm_sim.fleet import random_fleet
 
     scale = math.sqrt(n / 50.0)
     shape = load_shape('thesis_workspace').scaled(scale)
@@ -199,7 +199,7 @@ def send_and_deliver(medium, packets: Sequence, t: float) -> int:
 def bench_medium(sizes: Sequence[int], repeats: int, seed: int,
                  payload_bytes: int = 24) -> list[dict]:
     from swarm_agent.packet import BROADCAST, Kind, Packet
-    from swarm_mission.shapes import load_shape
+    from swarm_common.shapes import load_shape
     from swarm_sim.medium import MediumConfig, RadioMedium
 
     rows = []

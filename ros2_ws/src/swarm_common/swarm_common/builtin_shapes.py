@@ -39,7 +39,7 @@ import numpy as np
 from scipy.optimize import brentq
 from shapely.geometry import LineString, Polygon
 
-from swarm_mission.shapes import Shape, shape_from_rings
+from swarm_common.shapes import Shape, shape_from_rings
 
 THESIS_AREA = 314.0        # m^2, chapter 4 formation area
 TABLE43_LENGTHS = (62.8, 82.8, 116.82, 128.36)   # m, Table 4.3 boundary lengths

@@ -1,4 +1,8 @@
-"""The ``main()`` of a node: start it, refuse bad input in one line, spin, stop cleanly.
+"""What every node of every package shares on the ROS side (not a node module itself).
+
+``run_node`` is the ``main()`` of a node: start it, refuse bad input in one line, spin,
+stop cleanly. ``lean_publisher`` and ``lean_subscription`` create endpoints without
+rclpy's default QoS event handlers.
 
 A node that cannot start (a parameter out of its type or range, an unknown method or
 robot type, a missing file) prints one line naming the input and exits with status 2;
@@ -13,6 +17,7 @@ import sys
 from typing import TypeVar
 
 import rclpy
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.node import Node
@@ -52,3 +57,28 @@ def run_node(make_node: Callable[[], N], name: str, args=None,
                 pass
         node.destroy_node()
         rclpy.try_shutdown()
+
+
+def lean_publisher(node, msg_type, topic: str, qos_profile, **kwargs):
+    """``node.create_publisher`` without rclpy's default QoS event handlers.
+
+    rclpy gives every publisher and subscription default event handlers (incompatible
+    QoS, incompatible type) that only log a warning; each is a Python waitable the
+    executor adds to its wait set and polls after every wait. The per-robot topics of a
+    swarm make hundreds of them (about 550 in a composed process of 50 agents, 250 in
+    the simulator): profiled with py-spy on the 50-agent composed scenario, both
+    executors spent 60-77 % of their time on wait sets and under 10 % in callbacks.
+    What is given up: the warning when a peer's QoS or type does not match; every swarm
+    topic takes its profile from ``swarm_common.qos``, so peers agree by construction.
+    """
+    return node.create_publisher(
+        msg_type, topic, qos_profile,
+        event_callbacks=PublisherEventCallbacks(use_default_callbacks=False), **kwargs)
+
+
+def lean_subscription(node, msg_type, topic: str, callback, qos_profile, **kwargs):
+    """``node.create_subscription`` without the default QoS event handlers (see
+    ``lean_publisher``)."""
+    return node.create_subscription(
+        msg_type, topic, callback, qos_profile,
+        event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False), **kwargs)

@@ -1,9 +1,19 @@
-"""The fleet: one source of truth for robot ids, types, beacons and deployment poses.
+"""The fleet: one source of truth for robot ids, types, beacons and deployment poses,
+for the simulated swarm and the real robots alike.
 
 Layout of a fleet YAML (like crazyswarm2's crazyflies.yaml)::
 
     robots:
       - {id: 0, type: 1, beacon: true, x: -12.5, y: 30.1, yaw: 0.0}
+      - {id: 1, type: 2, x: -0.4, y: -0.8, address: '0013A20041000002', color: blue,
+         radius: 0.11}
+    cover_colors: {blue: [40, 70, 200]}
+
+A real robot (thesis ch. 5) also carries ``address``, the 64-bit serial number of its
+XBee, and the ``color`` and ``radius`` of its cover for the overhead camera; a hardware
+fleet (``load_fleet(..., hardware=True)``) needs the address of every robot, and its
+``cover_colors`` give each cover colour's RGB. The shipped hardware fleet is
+``HARDWARE_FLEET`` (thesis Table 5.1).
 
 ``random_fleet`` draws a seeded deployment in the +/-``half_size`` workspace, outside
 the obstacles, with a minimum separation, and spreads the beacons over the swarm.
@@ -21,6 +31,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 import dataclasses
 from dataclasses import dataclass
+import math
 import pathlib
 
 import numpy as np
@@ -28,6 +39,9 @@ import shapely
 from shapely.geometry import Polygon
 import yaml
 
+from swarm_common.paths import package_file
+
+HARDWARE_FLEET = package_file('swarm_bridge', 'config/fleet.yaml')
 PLACEMENT_STD_M = 0.3   # m per axis: how far a robot stands from its configured position
 # Stream key of the placement error: independent of the other draws of the same seed.
 _PLACEMENT_STREAM = 0x504C4143
@@ -39,7 +53,8 @@ class FleetError(ValueError):
 
 @dataclass(frozen=True)
 class RobotSpec:
-    """One robot of the fleet."""
+    """One robot of the fleet: the agent ``id`` that drives it, its type and role, where it
+    is deployed (m, rad CCW) and, for a real robot, its radio address and cover."""
 
     id: int
     type: int
@@ -47,6 +62,14 @@ class RobotSpec:
     x: float
     y: float
     yaw: float = 0.0
+    address: int | None = None   # XBee 64-bit serial number (SH + SL)
+    color: str = ''              # colour of the cover's circles (thesis 5.1, Fig. 5.2)
+    radius: float = 0.1          # radius of the cover, m
+
+    @property
+    def address_hex(self) -> str:
+        """The radio address as 16 hex digits (SH then SL)."""
+        return f'{self.address:016X}' if self.address is not None else ''
 
 
 def random_fleet(type_counts: Mapping[int, int], n_beacons: int, rng: np.random.Generator,
@@ -94,33 +117,116 @@ def random_fleet(type_counts: Mapping[int, int], n_beacons: int, rng: np.random.
 
 
 def save_fleet(path: str | pathlib.Path, robots: Sequence[RobotSpec]) -> None:
-    """Write the fleet YAML."""
-    data = {'robots': [{'id': r.id, 'type': r.type, 'beacon': r.is_beacon, 'x': r.x,
-                        'y': r.y, 'yaw': r.yaw} for r in robots]}
-    pathlib.Path(path).write_text(yaml.safe_dump(data, sort_keys=False), encoding='utf-8')
+    """Write the fleet YAML (hardware fields only where set)."""
+    rows = []
+    for r in robots:
+        row = {'id': r.id, 'type': r.type, 'beacon': r.is_beacon, 'x': r.x, 'y': r.y,
+               'yaw': r.yaw}
+        if r.address is not None:
+            row.update(address=r.address_hex, color=r.color, radius=r.radius)
+        rows.append(row)
+    pathlib.Path(path).write_text(yaml.safe_dump({'robots': rows}, sort_keys=False),
+                                  encoding='utf-8')
 
 
-def load_fleet(path: str | pathlib.Path) -> list[RobotSpec]:
-    """Read a fleet YAML; FleetError names the bad entry."""
+def parse_address(text: str | int) -> int:
+    """Parse a 64-bit XBee address given as 16 hex digits (spaces and 0x allowed)."""
+    if isinstance(text, int):
+        value = text
+    else:
+        digits = str(text).replace(' ', '').lower().removeprefix('0x')
+        if len(digits) != 16:
+            raise FleetError(f'address {text!r} must be 16 hex digits (SH + SL), '
+                             f'e.g. 0013A20041000001')
+        try:
+            value = int(digits, 16)
+        except ValueError:
+            raise FleetError(f'address {text!r} is not hexadecimal') from None
+    if not 0 <= value < 1 << 64:
+        raise FleetError(f'address {text!r} does not fit in 64 bits')
+    return value
+
+
+def _read(path: pathlib.Path) -> dict:
     try:
-        data = yaml.safe_load(pathlib.Path(path).read_text(encoding='utf-8'))
+        data = yaml.safe_load(path.read_text(encoding='utf-8'))
     except (OSError, yaml.YAMLError) as exc:
         raise FleetError(f'cannot read fleet file {path}: {exc}') from exc
-    robots = data.get('robots') if isinstance(data, dict) else None
+    return data if isinstance(data, dict) else {}
+
+
+def _robot(path: pathlib.Path, k: int, r, hardware: bool) -> RobotSpec:
+    if not isinstance(r, dict):
+        raise FleetError(f'fleet file {path} robot {k} must be a mapping of id, type, x, y')
+    if hardware and 'address' not in r:
+        raise FleetError(f'fleet file {path} robot {k} needs the address of its XBee '
+                         '(16 hex digits, SH + SL)')
+    try:
+        spec = RobotSpec(int(r['id']), int(r['type']), bool(r.get('beacon', False)),
+                         float(r['x']), float(r['y']), float(r.get('yaw', 0.0)),
+                         color=str(r.get('color', '')), radius=float(r.get('radius', 0.1)))
+    except (KeyError, TypeError, ValueError):
+        raise FleetError(f'fleet file {path} robot {k} needs numeric id, type, x, y') \
+            from None
+    if 'address' in r:
+        spec = dataclasses.replace(spec, address=parse_address(r['address']))
+    return spec
+
+
+def load_fleet(path: str | pathlib.Path | None = None, *,
+               hardware: bool = False) -> list[RobotSpec]:
+    """Read a fleet YAML (``HARDWARE_FLEET`` when ``path`` is None); FleetError names the
+    bad entry. ``hardware`` requires every robot's radio address. Ids, and addresses
+    where given, are unique."""
+    path = pathlib.Path(path) if path else HARDWARE_FLEET
+    robots = _read(path).get('robots')
     if not isinstance(robots, list) or not robots:
         raise FleetError(f'fleet file {path} needs a non-empty "robots" list')
-    out = []
-    for k, r in enumerate(robots):
-        try:
-            out.append(RobotSpec(int(r['id']), int(r['type']), bool(r.get('beacon', False)),
-                                 float(r['x']), float(r['y']), float(r.get('yaw', 0.0))))
-        except (KeyError, TypeError, ValueError):
-            raise FleetError(f'fleet file {path} robot {k} needs numeric id, type, x, y') \
-                from None
-    if len({r.id for r in out}) != len(out):
-        raise FleetError(f'fleet file {path} repeats robot ids')
+    out = [_robot(path, k, r, hardware) for k, r in enumerate(robots)]
+    for key in ('id', 'address'):
+        values = [getattr(r, key) for r in out if getattr(r, key) is not None]
+        dupes = sorted({v for v in values if values.count(v) > 1})
+        if dupes:
+            raise FleetError(f'fleet file {path} repeats robot {key}s {dupes}; every robot '
+                             'needs its own')
     return out
 
+
+def load_cover_colors(path: str | pathlib.Path | None = None) -> dict[str, tuple[int, int, int]]:
+    """The fleet file's ``cover_colors``: colour name -> RGB 0-255 (thesis 5.1, Fig. 5.2).
+
+    Every robot's ``color`` must be listed; a fleet file without the section gets the
+    shipped hardware fleet's table for the names it uses.
+    """
+    path = pathlib.Path(path) if path else HARDWARE_FLEET
+    robots = load_fleet(path)
+    table = _read(path).get('cover_colors')
+    if table is None and path != HARDWARE_FLEET and HARDWARE_FLEET.exists():
+        table = _read(HARDWARE_FLEET).get('cover_colors')
+    colors = {}
+    for name, rgb in (table or {}).items():
+        if (not isinstance(rgb, (list, tuple)) or len(rgb) != 3
+                or not all(isinstance(v, (int, float)) and 0 <= v <= 255 for v in rgb)):
+            raise FleetError(f'{path}: cover_colors {name}: give [r, g, b] with 0-255 values')
+        colors[str(name)] = tuple(int(v) for v in rgb)
+    unknown = sorted({r.color for r in robots if r.color} - set(colors))
+    if unknown:
+        raise FleetError(f'{path}: robot colours {unknown} are not in cover_colors; add '
+                         'their RGB values there')
+    return colors
+
+
+def initial_poses(flat: Sequence[float], robots: Sequence[RobotSpec]
+                  ) -> list[tuple[float, float, float]]:
+    """Start poses (x m, y m, yaw rad CCW): the fleet's, unless the flat parameter list
+    (x, y, yaw in degrees per robot) overrides them."""
+    if len(flat) <= 1:
+        return [(r.x, r.y, r.yaw) for r in robots]
+    if len(flat) != 3 * len(robots):
+        raise FleetError(f'initial_poses holds {len(flat)} numbers; give x,y,yaw_deg for '
+                         f'each of the {len(robots)} robots ({3 * len(robots)} numbers)')
+    return [(flat[3 * i], flat[3 * i + 1], math.radians(flat[3 * i + 2]))
+            for i in range(len(robots))]
 
 
 def place_fleet(fleet: Sequence[RobotSpec], placement_std_m: float, seed: int, *,

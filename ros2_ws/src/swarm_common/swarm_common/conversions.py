@@ -12,8 +12,8 @@ from collections.abc import Iterable
 from builtin_interfaces.msg import Time
 import numpy as np
 
-from swarm_mission.goals import Goal
-from swarm_mission.shapes import Shape, shape_from_rings
+from swarm_common.goals import Goal
+from swarm_common.shapes import Shape, shape_from_rings
 from swarm_msgs.msg import FormationShape, GoalArray, GoalState, Ring
 
 

@@ -12,6 +12,8 @@ import pathlib
 
 import yaml
 
+from swarm_common.paths import package_file
+
 GRAVITY = 9.81  # m/s^2
 # One colour per type (RGB in 0..1) for every view: figures, pybullet bodies, RViz markers
 # (matplotlib's tab:red, tab:orange, tab:purple).
@@ -19,19 +21,7 @@ TYPE_COLOURS = {1: (0.839, 0.153, 0.157), 2: (1.0, 0.498, 0.055), 3: (0.580, 0.4
 OTHER_COLOUR = (0.5, 0.5, 0.5)
 
 
-def package_config(name: str) -> pathlib.Path:
-    """Path of ``config/<name>`` of swarm_mission: the source tree, else the install share."""
-    local = pathlib.Path(__file__).resolve().parent.parent / 'config' / name
-    if local.exists():
-        return local
-    try:
-        from ament_index_python.packages import get_package_share_directory
-        return pathlib.Path(get_package_share_directory('swarm_mission')) / 'config' / name
-    except (ImportError, LookupError):
-        return local
-
-
-DEFAULT_CONFIG = package_config('robot_types.yaml')
+DEFAULT_CONFIG = package_file('swarm_common', 'config/robot_types.yaml')
 
 
 class RobotTypeError(ValueError):

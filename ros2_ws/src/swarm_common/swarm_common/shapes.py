@@ -7,7 +7,7 @@ plus optional workspace obstacles (polygons that may lie outside the formation).
 
 ``load_shape(spec)`` accepts
 
-- a built-in name (see :mod:`swarm_mission.builtin_shapes`, ``builtin_shape_names()``);
+- a built-in name (see :mod:`swarm_common.builtin_shapes`, ``builtin_shape_names()``);
 - ``*.json``: ``{"outer": [[x, y], ...], "holes": [[[x, y], ...], ...],
   "obstacles": [[[x, y], ...], ...]}`` in metres (holes and obstacles optional; a ring
   may repeat its first vertex at the end or not);
@@ -350,7 +350,7 @@ def _load_png(path: pathlib.Path, metres_per_pixel: float) -> Shape:
 
 def builtin_shape_names() -> list[str]:
     """Names accepted by :func:`load_shape` besides file paths."""
-    from swarm_mission.builtin_shapes import BUILTIN_SHAPES
+    from swarm_common.builtin_shapes import BUILTIN_SHAPES
     return sorted(BUILTIN_SHAPES)
 
 
@@ -367,7 +367,7 @@ def load_shape(spec: str, *, scale: float = 1.0, metres_per_pixel: float = 0.05,
         raise ShapeError(f'shape scale must be a positive number, got {scale!r}')
     if not (np.isfinite(metres_per_pixel) and metres_per_pixel > 0):
         raise ShapeError(f'metres_per_pixel must be positive, got {metres_per_pixel!r}')
-    from swarm_mission.builtin_shapes import BUILTIN_SHAPES
+    from swarm_common.builtin_shapes import BUILTIN_SHAPES
     spec = str(spec)
     path = pathlib.Path(spec)
     suffix = path.suffix.lower()
