@@ -10,24 +10,26 @@ Camera poses. The thesis's robots have no IMU and no LPS (5.1): the camera posit
 their position. agent_node feeds it to the Kalman filter of 3.1.4 as a GPS fix, but with
 no accelerometer the filter never predicts, its covariance only shrinks and the estimate
 lags the robot more and more (measured: 0.25 m behind after 20 s, so robots overshoot
-their goals). This node therefore sets the estimate from each camera pose: position as
-measured, velocity as the camera displacement over ``velocity_window`` seconds. A robot
-the camera has not seen for ``pose_timeout`` seconds keeps its last estimate, LOST, with
-an uncertainty that grows as far as it can have driven since (``setpoint.v_max`` times
-the time without a pose), so its state says how little its position is known.
+their goals). This node therefore sets the estimate from each camera pose
+(:class:`~swarm_bridge.camera_pose.CameraPoseWindow`): velocity as the camera
+displacement over ``velocity_window`` seconds of capture stamps, position as measured
+predicted forward over the pose's age (its stamp is the frame's capture time; the
+camera's latency is up to ``max_pose_age`` seconds, an older or unset stamp is taken as
+the arrival time). A robot the camera has not seen for ``pose_timeout`` seconds keeps
+its last estimate, LOST, with an uncertainty that grows as far as it can have driven
+(``setpoint.v_max`` times the time without a pose), so its state says how little its
+position is known.
 
 Heading. The camera also measures each robot's yaw: it is the agent's heading
 (``AgentNode.set_heading``), the body frame of its ``cmd_vel``, ``odom`` and TF (REP
-103/105), with its rate over the same window. A robot turns while it drives (the
-omni wheels' travel does not sum to zero, eqs. 5.1-5.3), so ``cmd_vel`` goes out again
-whenever the setpoint seen from the new heading changes; the bridge sends it to the
-board as is.
+103/105), with its rate over the same window, predicted over the pose's age as the
+position is. A robot turns while it drives (the omni wheels' travel does not sum to zero,
+eqs. 5.1-5.3), so ``cmd_vel`` goes out again whenever the setpoint seen from the new
+heading changes; the bridge sends it to the board as is.
 """
 
 from __future__ import annotations
 
-from collections import deque
-import math
 import sys
 
 from geometry_msgs.msg import PoseStamped
@@ -35,12 +37,15 @@ import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 
 from swarm_agent.agent_node import AgentNode, make_executor
-from swarm_agent.conversions import yaw_of
+from swarm_agent.conversions import stamp_seconds, yaw_of
+from swarm_bridge.camera_pose import CameraPoseWindow
 from swarm_common.ros_support import run_node
 
 PARAMETERS = {
     'velocity_window': (0.5, 'Camera displacement over this many seconds is the velocity'),
     'pose_timeout': (0.5, 'Without a camera pose for this long the robot is LOST, s'),
+    'max_pose_age': (0.3, 'Camera latency compensated at most (capture stamp to arrival), '
+                          's; an older stamp counts as the arrival time'),
 }
 
 
@@ -59,7 +64,7 @@ class HwAgentNode(AgentNode):
                                  f'got {value}: e.g. -p {name}:={PARAMETERS[name][0]}')
         self._window = p['velocity_window']
         self._pose_timeout = p['pose_timeout']
-        self._poses: deque[tuple[float, float, float, float]] = deque()  # t, x, y, yaw
+        self._poses = CameraPoseWindow(self._window, p['max_pose_age'])
         self._stale = False
         self.create_timer(0.1, self._check_pose_age)
         config = self.brain.config
@@ -72,31 +77,26 @@ class HwAgentNode(AgentNode):
         return self.brain.config.setpoint.v_max
 
     def _on_pose(self, msg: PoseStamped) -> None:
-        """Camera pose: the estimate is the measurement (see the module docstring)."""
+        """Camera pose: the estimate is the measurement predicted to now (module docstring)."""
         t = self._now()
-        x, y = msg.pose.position.x, msg.pose.position.y
-        if not (np.isfinite(x) and np.isfinite(y)):
+        if not self._poses.add(stamp_seconds(msg.header.stamp), t, msg.pose.position.x,
+                               msg.pose.position.y, yaw_of(msg.pose.orientation)):
             return
-        yaw = yaw_of(msg.pose.orientation)
-        self._poses.append((t, x, y, yaw))
-        while len(self._poses) > 2 and t - self._poses[1][0] >= self._window:
-            self._poses.popleft()
-        t0, x0, y0, yaw0 = self._poses[0]
-        dt = t - t0
-        velocity = (np.array([x - x0, y - y0]) / dt) if dt > 1e-3 else np.zeros(2)
+        est = self._poses.estimate(t)
         std = self.params['external_pose_std']
-        self.brain.localizer.set_state((x, y), velocity, std, 2 * std / self._window)
-        rate = math.remainder(yaw - yaw0, math.tau) / dt if dt > 1e-3 else 0.0
-        self.set_heading(yaw, rate, 2 * self.params['external_heading_std'] / self._window)
+        self.brain.localizer.set_state(est.position, est.velocity, std, 2 * std / self._window)
+        self.set_heading(est.yaw, est.rate,
+                         2 * self.params['external_heading_std'] / self._window)
         if self._stale:
             self._stale = False
             self.get_logger().info('camera pose back')
 
     def _check_pose_age(self) -> None:
         """Hold the last estimate with a growing uncertainty while no pose comes."""
-        if not self._poses:
+        last = self._poses.last_stamp
+        if last is None:
             return
-        age = self._now() - self._poses[-1][0]
+        age = self._now() - last
         if age < self._pose_timeout:
             return
         if not self._stale:
