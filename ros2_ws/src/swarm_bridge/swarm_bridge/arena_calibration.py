@@ -23,6 +23,9 @@ import yaml
 ARUCO_DICTIONARY = cv2.aruco.DICT_4X4_50
 
 
+LENS_ITERATIONS = 20     # fixed-point steps of the radial undistortion (converged to 1e-9)
+
+
 class CalibrationError(ValueError):
     """A calibration that cannot be made or read; the message names the input and the fix."""
 
@@ -45,29 +48,97 @@ class ArenaMarkers:
 
 
 @dataclass
+class Lens:
+    """Radial lens distortion (OpenCV's model, no tangential terms): camera matrix ``K``
+    (3x3: focal lengths and principal point, pixels) and ``k1``, ``k2``. A pixel of the
+    ideal (pinhole) image at normalized radius r appears at r (1 + k1 r^2 + k2 r^4)."""
+
+    K: np.ndarray
+    k1: float
+    k2: float
+    rms_px: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.K = np.asarray(self.K, dtype=float).reshape(3, 3)
+
+    @property
+    def coefficients(self) -> np.ndarray:
+        """OpenCV distortion coefficients (k1, k2, p1, p2)."""
+        return np.array([self.k1, self.k2, 0.0, 0.0])
+
+    def _normalize(self, pixels: np.ndarray) -> np.ndarray:
+        K = self.K
+        return (pixels - K[:2, 2]) / np.array([K[0, 0], K[1, 1]])
+
+    def _pixels(self, normalized: np.ndarray) -> np.ndarray:
+        K = self.K
+        return normalized * np.array([K[0, 0], K[1, 1]]) + K[:2, 2]
+
+    def distort(self, pixels: np.ndarray) -> np.ndarray:
+        """Ideal pixel coordinates (..., 2) -> where the lens puts them (..., 2)."""
+        n = self._normalize(np.asarray(pixels, dtype=float))
+        r2 = np.sum(n * n, axis=-1, keepdims=True)
+        return self._pixels(n * (1.0 + self.k1 * r2 + self.k2 * r2 * r2))
+
+    def undistort(self, pixels: np.ndarray) -> np.ndarray:
+        """Distorted pixel coordinates (..., 2) -> ideal (pinhole) ones (..., 2), by
+        fixed-point iteration of the radial model (what cv2.undistortPoints does, for
+        arrays of any shape)."""
+        d = self._normalize(np.asarray(pixels, dtype=float))
+        n = d.copy()
+        for _ in range(LENS_ITERATIONS):
+            r2 = np.sum(n * n, axis=-1, keepdims=True)
+            n = d / (1.0 + self.k1 * r2 + self.k2 * r2 * r2)
+        return self._pixels(n)
+
+    def jacobian_det(self, pixel: np.ndarray, step: float = 0.5) -> float:
+        """Area of one distorted pixel in ideal pixels (undistortion's Jacobian)."""
+        p = np.asarray(pixel, dtype=float)
+        q = self.undistort(np.array([p + (step, 0.0), p - (step, 0.0), p + (0.0, step),
+                                     p - (0.0, step)]))
+        J = np.column_stack([q[0] - q[1], q[2] - q[3]]) / (2.0 * step)
+        return abs(float(np.linalg.det(J)))
+
+
+@dataclass
 class Calibration:
-    """Pixel -> arena homography ``H`` (3x3) for images of ``size`` (width, height)."""
+    """Pixel -> arena homography ``H`` (3x3) for images of ``size`` (width, height), fitted
+    to ideal (undistorted) pixels when a ``lens`` is known; optionally the colours the
+    camera sees: channel gains that make the white cover plates neutral
+    (``white_balance``, R, G, B) and each cover colour's RGB after them
+    (``cover_colors``), both measured by ``camera_calibrate --colors``."""
 
     H: np.ndarray
     size: tuple[int, int]
     rms_m: float = 0.0
     markers: ArenaMarkers = field(default_factory=ArenaMarkers)
+    lens: Lens | None = None
+    white_balance: tuple[float, float, float] | None = None
+    cover_colors: dict[str, tuple[int, int, int]] | None = None
 
     def __post_init__(self) -> None:
         self.H = np.asarray(self.H, dtype=float).reshape(3, 3)
         self.H_inv = np.linalg.inv(self.H)
 
+    def undistort(self, pixels: np.ndarray) -> np.ndarray:
+        """Image pixels (..., 2) -> ideal pixels (the same without a lens)."""
+        return pixels if self.lens is None else self.lens.undistort(pixels)
+
     def to_arena(self, pixels: np.ndarray) -> np.ndarray:
         """Map pixel coordinates (..., 2) (u right, v down) to arena metres (..., 2)."""
-        return apply_homography(self.H, pixels)
+        return apply_homography(self.H, self.undistort(np.asarray(pixels, dtype=float)))
 
     def to_pixels(self, points: np.ndarray) -> np.ndarray:
         """Map arena metres (..., 2) to pixel coordinates (..., 2)."""
-        return apply_homography(self.H_inv, points)
+        ideal = apply_homography(self.H_inv, points)
+        return ideal if self.lens is None else self.lens.distort(ideal)
 
     def area_per_pixel(self, pixel: np.ndarray) -> float:
-        """Arena area (m^2) of one pixel at ``pixel``: the homography's Jacobian there."""
-        return abs(float(np.linalg.det(homography_jacobian(self.H, pixel))))
+        """Arena area (m^2) of one pixel at ``pixel``: the Jacobian of the homography
+        (and of the undistortion) there."""
+        pixel = np.asarray(pixel, dtype=float)
+        area = abs(float(np.linalg.det(homography_jacobian(self.H, self.undistort(pixel)))))
+        return area if self.lens is None else area * self.lens.jacobian_det(pixel)
 
     def save(self, path: str | pathlib.Path) -> None:
         """Write the calibration as YAML (what the tracker's ``calibration_file`` reads)."""
@@ -77,24 +148,57 @@ class Calibration:
                'markers': {'ids': list(self.markers.ids),
                            'centres': [list(c) for c in self.markers.centres],
                            'side': self.markers.side}}
+        if self.lens is not None:
+            doc['lens'] = {'camera_matrix': [[float(v) for v in row] for row in self.lens.K],
+                           'k1': float(self.lens.k1), 'k2': float(self.lens.k2),
+                           'rms_error_px': float(self.lens.rms_px)}
+        if self.white_balance is not None:
+            doc['white_balance'] = [round(float(g), 4) for g in self.white_balance]
+        if self.cover_colors is not None:
+            doc['cover_colors'] = {name: [int(v) for v in rgb]
+                                   for name, rgb in self.cover_colors.items()}
         pathlib.Path(path).write_text(
             '# Overhead camera calibration (swarm_bridge camera_calibrate): pixel -> arena\n'
-            + yaml.safe_dump(doc, sort_keys=False))
+            + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
 
     @classmethod
-    def load(cls, path: str | pathlib.Path) -> Calibration:
-        """Read a calibration YAML written by :meth:`save`."""
+    def load(cls, path: str | pathlib.Path, *, need_arena: bool = True) -> Calibration:
+        """Read a calibration YAML written by :meth:`save`; without ``need_arena`` a file
+        holding only a lens (``camera_calibrate --lens``) is read too (identity H)."""
         try:
             doc = yaml.safe_load(pathlib.Path(path).read_text())
+            if not isinstance(doc, dict):
+                raise TypeError
+            lens = doc.get('lens')
+            if lens is not None:
+                lens = Lens(np.array(lens['camera_matrix'], dtype=float), float(lens['k1']),
+                            float(lens['k2']), float(lens.get('rms_error_px', 0.0)))
+            if 'homography_pixel_to_arena' not in doc and not need_arena and lens:
+                return cls(np.eye(3), tuple(doc['image_size']), lens=lens)
             m = doc.get('markers', {})
             markers = ArenaMarkers(tuple(m['ids']), tuple(tuple(c) for c in m['centres']),
                                    float(m['side'])) if m else ArenaMarkers()
-            return cls(np.array(doc['homography_pixel_to_arena'], dtype=float),
-                       tuple(doc['image_size']), float(doc.get('rms_error_m', 0.0)), markers)
+            balance = doc.get('white_balance')
+            if balance is not None:
+                balance = tuple(float(g) for g in balance)
+                if len(balance) != 3 or not all(0.1 < g < 10.0 for g in balance):
+                    raise ValueError
+            colors = doc.get('cover_colors')
+            if colors is not None:
+                colors = {str(k): tuple(int(v) for v in rgb) for k, rgb in colors.items()}
+                if not all(len(rgb) == 3 and all(0 <= v <= 255 for v in rgb)
+                           for rgb in colors.values()):
+                    raise ValueError
+            size = tuple(int(v) for v in doc['image_size'])
+            if len(size) != 2:
+                raise ValueError
+            return cls(np.array(doc['homography_pixel_to_arena'], dtype=float), size,
+                       float(doc.get('rms_error_m', 0.0)), markers, lens, balance, colors)
         except OSError as exc:
             raise CalibrationError(f'cannot read calibration file {path}: {exc.strerror}; '
                                    'run camera_calibrate first') from None
-        except (KeyError, TypeError, ValueError, AttributeError, np.linalg.LinAlgError):
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError,
+                np.linalg.LinAlgError, yaml.YAMLError):
             raise CalibrationError(f'{path} is not a calibration file written by '
                                    'camera_calibrate; run it again') from None
 
@@ -134,8 +238,10 @@ def find_markers(image: np.ndarray) -> dict[int, np.ndarray]:
     return {int(i): c.reshape(4, 2).astype(float) for i, c in zip(ids.ravel(), corners)}
 
 
-def calibrate(image: np.ndarray, markers: ArenaMarkers = ArenaMarkers()) -> Calibration:
-    """Fit the pixel -> arena homography to the four corner markers seen in ``image``."""
+def calibrate(image: np.ndarray, markers: ArenaMarkers = ArenaMarkers(),
+              lens: Lens | None = None) -> Calibration:
+    """Fit the pixel -> arena homography to the four corner markers seen in ``image``
+    (their corners undistorted first when the ``lens`` is known)."""
     found = find_markers(image)
     missing = [i for i in markers.ids if i not in found]
     if missing:
@@ -144,6 +250,8 @@ def calibrate(image: np.ndarray, markers: ArenaMarkers = ArenaMarkers()) -> Cali
             f'place ArUco 4x4_50 markers {list(markers.ids)} at the arena corners, '
             f'upright, in full view and evenly lit')
     pixels = np.vstack([found[i] for i in markers.ids])
+    if lens is not None:
+        pixels = lens.undistort(pixels)
     arena = np.vstack([markers.corners(i) for i in markers.ids])
     H, _ = cv2.findHomography(pixels, arena, 0)
     if H is None:
@@ -152,4 +260,36 @@ def calibrate(image: np.ndarray, markers: ArenaMarkers = ArenaMarkers()) -> Cali
     residual = apply_homography(H, pixels) - arena
     rms = float(np.sqrt(np.mean(np.sum(residual ** 2, axis=1))))
     h, w = image.shape[:2]
-    return Calibration(H, (w, h), rms, markers)
+    return Calibration(H, (w, h), rms, markers, lens)
+
+
+def find_checkerboard(image: np.ndarray, pattern: tuple[int, int]) -> np.ndarray | None:
+    """The inner corners (N, 2) of a checkerboard of ``pattern`` (columns, rows of inner
+    corners) in ``image``, refined to sub-pixel; None if it is not all in view."""
+    gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+    ok, corners = cv2.findChessboardCorners(
+        gray, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+    if not ok:
+        return None
+    corners = cv2.cornerSubPix(gray, corners, (5, 5), (-1, -1), (
+        cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 40, 0.01))
+    return corners.reshape(-1, 2).astype(float)
+
+
+def calibrate_lens(views: list[np.ndarray], size: tuple[int, int],
+                   pattern: tuple[int, int] = (9, 6), square: float = 0.03) -> Lens:
+    """The lens (camera matrix, k1, k2) from checkerboard corners seen in ``views`` (each
+    (N, 2) of :func:`find_checkerboard`) by Zhang's method (cv2.calibrateCamera; no
+    tangential distortion, no k3): the board held at several tilts and places, covering
+    the image's corners, where distortion is largest."""
+    if len(views) < 4:
+        raise CalibrationError(f'{len(views)} checkerboard views found; hold the printed '
+                               f'{pattern[0]}x{pattern[1]} board tilted at ten or more '
+                               'places covering the whole image')
+    grid = np.zeros((pattern[0] * pattern[1], 3), np.float32)
+    grid[:, :2] = np.mgrid[0:pattern[0], 0:pattern[1]].T.reshape(-1, 2) * square
+    flags = cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K3
+    rms, K, dist, _, _ = cv2.calibrateCamera(
+        [grid] * len(views), [v.reshape(-1, 1, 2).astype(np.float32) for v in views],
+        tuple(size), None, None, flags=flags)
+    return Lens(K, float(dist.ravel()[0]), float(dist.ravel()[1]), float(rms))

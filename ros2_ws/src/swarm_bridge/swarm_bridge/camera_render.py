@@ -12,8 +12,14 @@ hardware-in-the-loop world can close its loop through an image:
   :mod:`swarm_bridge.arena_calibration` fits its homography to;
 - covers drawn lowest first (the largest robot's cover is the highest and hides the edge
   of a smaller neighbour's);
-- a lighting gradient across the image and an overall brightness, lens blur (Gaussian)
-  and sensor noise (Gaussian, in 8-bit digital numbers);
+- a lighting gradient across the image and an overall brightness, a white balance (gains
+  per colour channel: a camera balanced for another light than the arena's), radial lens
+  distortion (``k1``, ``k2`` of OpenCV's model about the image centre, focal length
+  ``focal_px``: a wide-angle lens), lens blur (Gaussian) and sensor noise (Gaussian, in
+  8-bit digital numbers);
+- :meth:`CameraRenderer.checkerboard`: a printed checkerboard held in front of the same lens, the
+  views :func:`~swarm_bridge.arena_calibration.calibrate_lens` estimates the distortion
+  from;
 - :class:`SimCamera`: a frame rate and a latency between capture and delivery.
 
 Pure module (numpy, OpenCV; no rclpy). Images are BGR uint8, as OpenCV and
@@ -30,7 +36,7 @@ import math
 import cv2
 import numpy as np
 
-from swarm_bridge.arena_calibration import apply_homography, ArenaMarkers, ARUCO_DICTIONARY
+from swarm_bridge.arena_calibration import apply_homography, ArenaMarkers, ARUCO_DICTIONARY, Lens
 
 PLATE_RGB = (232, 232, 226)     # the cover plate: off-white card
 RIM_RGB = (90, 90, 90)          # its edge
@@ -64,6 +70,10 @@ class CameraConfig:
     gradient: float = 0.3        # gain falls by this fraction from one corner to the other
     blur_sigma_px: float = 0.9   # lens blur
     noise_std: float = 2.0       # sensor noise, digital numbers (0-255)
+    white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0)   # R, G, B gains
+    k1: float = 0.0              # radial distortion (OpenCV model; < 0: barrel)
+    k2: float = 0.0
+    focal_px: float = 600.0      # focal length of the distortion model, pixels
     texture: float = 0.08        # floor texture contrast
     rate_hz: float = 30.0        # frames per second
     latency_s: float = 0.05      # capture to delivery
@@ -110,6 +120,31 @@ def camera_homography(cfg: CameraConfig) -> np.ndarray:
     return cv2.getPerspectiveTransform(arena, np.array(pix, dtype=np.float32)).astype(float)
 
 
+def lens_matrix(cfg: CameraConfig) -> np.ndarray:
+    """The synthetic lens's camera matrix (3x3): ``focal_px``, centred on the image."""
+    return np.array([[cfg.focal_px, 0.0, cfg.width / 2.0],
+                     [0.0, cfg.focal_px, cfg.height / 2.0], [0.0, 0.0, 1.0]])
+
+
+def camera_lens(cfg: CameraConfig) -> Lens | None:
+    """The synthetic camera's lens: radial distortion ``k1``, ``k2`` about the image
+    centre with focal length ``focal_px``; None without distortion."""
+    if cfg.k1 == 0.0 and cfg.k2 == 0.0:
+        return None
+    return Lens(lens_matrix(cfg), cfg.k1, cfg.k2)
+
+
+def distortion_maps(cfg: CameraConfig) -> tuple[np.ndarray, np.ndarray] | None:
+    """cv2.remap maps that distort an ideal (pinhole) image by the lens: for every pixel
+    of the distorted image, where it lies in the ideal one. None without distortion."""
+    lens = camera_lens(cfg)
+    if lens is None:
+        return None
+    v, u = np.mgrid[0:cfg.height, 0:cfg.width].astype(float)
+    ideal = lens.undistort(np.stack([u, v], axis=-1)).astype(np.float32)
+    return ideal[..., 0], ideal[..., 1]
+
+
 def circle_polygon(H: np.ndarray, x: float, y: float, r: float, n: int = 64) -> np.ndarray:
     """A circle of the arena as an image polygon, fixed point with 4 fractional bits."""
     t = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
@@ -134,6 +169,7 @@ class CameraRenderer:
         self.rng = np.random.default_rng(cfg.seed)
         self.background = self._background(markers, arena_half_m)
         self.gain = self._gain_field()
+        self.maps = distortion_maps(cfg)
 
     # -- static parts -------------------------------------------------------------------
     def _background(self, markers: ArenaMarkers, half: float) -> np.ndarray:
@@ -203,14 +239,50 @@ class CameraRenderer:
     def render(self, covers: Sequence[Cover], rng: np.random.Generator | None = None
                ) -> np.ndarray:
         """One camera frame (BGR uint8) of ``covers``: light, blur and noise applied."""
+        return self.expose(self.draw_covers(covers), rng)
+
+    def expose(self, scene: np.ndarray, rng: np.random.Generator | None = None
+               ) -> np.ndarray:
+        """An ideal scene (BGR uint8) as the camera delivers it: lens distortion, light,
+        white balance, blur and noise."""
         cfg = self.cfg
         rng = rng if rng is not None else self.rng
-        img = self.draw_covers(covers).astype(np.float32) * self.gain[..., None]
+        if self.maps is not None:
+            scene = cv2.remap(scene, *self.maps, cv2.INTER_LINEAR,
+                              borderMode=cv2.BORDER_REPLICATE)
+        gain = self.gain[..., None] * np.array(cfg.white_balance[::-1], dtype=np.float32)
+        img = scene.astype(np.float32) * gain
         if cfg.blur_sigma_px > 0:
             img = cv2.GaussianBlur(img, (0, 0), cfg.blur_sigma_px)
         if cfg.noise_std > 0:
             img += rng.standard_normal(img.shape, dtype=np.float32) * cfg.noise_std
         return np.clip(img, 0, 255).astype(np.uint8)
+
+    def checkerboard(self, rvec: Sequence[float], tvec: Sequence[float],
+                     pattern: tuple[int, int] = (9, 6), square: float = 0.03) -> np.ndarray:
+        """A printed checkerboard of ``pattern`` inner corners and ``square`` m squares
+        (a white margin of one square) at pose ``rvec``, ``tvec`` (OpenCV: board ->
+        camera, m; its origin the first inner corner) before a grey wall, seen through
+        the lens: the pinhole image of ``lens_matrix``, then :meth:`expose`."""
+        cfg = self.cfg
+        cols, rows = pattern[0] + 1, pattern[1] + 1          # squares
+        px = 40                                              # texture pixels per square
+        tex = np.full(((rows + 2) * px, (cols + 2) * px), 245, np.uint8)
+        for r in range(rows):
+            for c in range(cols):
+                if (r + c) % 2 == 0:
+                    tex[(r + 1) * px:(r + 2) * px, (c + 1) * px:(c + 2) * px] = 20
+        R, _ = cv2.Rodrigues(np.asarray(rvec, dtype=float))
+        board_to_ideal = lens_matrix(cfg) @ np.column_stack(
+            [R[:, 0], R[:, 1], np.asarray(tvec, dtype=float)])
+        tex_to_board = np.array([[square / px, 0.0, -2.0 * square],
+                                 [0.0, square / px, -2.0 * square], [0.0, 0.0, 1.0]])
+        scene = np.full((cfg.height, cfg.width, 3), 120, np.uint8)
+        cv2.warpPerspective(cv2.cvtColor(tex, cv2.COLOR_GRAY2BGR),
+                            board_to_ideal @ tex_to_board, (cfg.width, cfg.height),
+                            dst=scene, flags=cv2.INTER_AREA,
+                            borderMode=cv2.BORDER_TRANSPARENT)
+        return self.expose(scene)
 
 
 class SimCamera:

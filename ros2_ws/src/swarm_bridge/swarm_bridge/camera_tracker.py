@@ -3,17 +3,21 @@
 Every robot carries a cover with two circles of its colour (Fig. 5.2): a large one at
 its centre and a small one toward its heading. Per frame (:meth:`CameraTracker.update`):
 
-1. Colour classification in HSV. A pixel is coloured when its saturation is above
-   ``saturation_min`` and its value above ``value_fraction`` of the image's reference
-   brightness (the ``reference_percentile`` of V: the white covers), so the thresholds
-   follow the light from dim to bright; hue is unchanged by the light's gain. Its hue
-   picks the fleet colour it is nearest to, within ``hue_tolerance`` (at most 45 % of
-   the gap to the next fleet colour); a coloured pixel far from every fleet colour is of
-   an unknown colour.
+1. Colour classification in HSV, after the calibration's white balance (channel gains
+   measured on the white cover plates by ``camera_calibrate --colors``). A pixel is
+   coloured when its saturation is above ``saturation_min`` and its value above
+   ``value_fraction`` of the image's reference brightness (the ``reference_percentile``
+   of V: the white covers), so the thresholds follow the light from dim to bright; hue
+   is unchanged by the light's gain. Its hue picks the cover colour it is nearest to
+   (the calibration's measured ``cover_colors``, else the fleet file's), within
+   ``hue_tolerance`` (at most 45 % of the gap to the next colour); a coloured pixel far
+   from every cover colour is of an unknown colour.
 2. Circles: connected regions per colour; each region's centre is its
    saturation-weighted centroid (sub-pixel), mapped to the arena by the calibration's
-   homography (:mod:`swarm_bridge.arena_calibration`); its area in the arena tells a
-   large circle from a small one (the colour's robots have one type, hence one radius).
+   homography, after the lens's undistortion when the calibration knows the lens
+   (:mod:`swarm_bridge.arena_calibration`; only the few centres are undistorted, not
+   the image); its area in the arena tells a large circle from a small one (the
+   colour's robots have one type, hence one radius).
 3. Covers: each large circle is paired with a small one at the cover's circle offset
    (Hungarian on the offset error). Position = the large circle's centre; heading =
    the bearing from the large to the small circle (Fig. 5.3). The thesis states that
@@ -152,10 +156,19 @@ class CameraTracker:
         self.geometry = geometry or CoverGeometry()
         self.calibration = calibration
         self.names = sorted({r.color for r in robots})
+        if calibration.cover_colors is not None:       # measured under the arena's light
+            colors = calibration.cover_colors
+            where = ("the calibration file's cover_colors; run camera_calibrate --colors "
+                     'with every robot at its start pose')
+        else:
+            where = 'cover_colors; add them to the fleet file'
         missing = [n for n in self.names if n not in colors]
         if missing:
-            raise TrackerError(f'robot colours {missing} have no RGB in cover_colors; add them '
-                               'to the fleet file')
+            raise TrackerError(f'robot colours {missing} have no RGB in {where}')
+        self.colors = {n: tuple(colors[n]) for n in self.names}
+        balance = calibration.white_balance
+        self._balance = None if balance is None or np.allclose(balance, 1.0) else np.diag(
+            [balance[2], balance[1], balance[0]]).astype(np.float32)   # BGR
         self.radius: dict[str, float] = {}
         for name in self.names:
             group = [r for r in robots if r.color == name]
@@ -186,6 +199,8 @@ class CameraTracker:
 
     def classify(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """Per-pixel labels (colour index, UNKNOWN or NONE), saturation, reference V."""
+        if self._balance is not None:
+            image = cv2.transform(image, self._balance)
         hsv = cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
         hue, sat, val = cv2.split(hsv)
         v_ref = float(np.percentile(val[::4, ::4], self.cfg.reference_percentile))
