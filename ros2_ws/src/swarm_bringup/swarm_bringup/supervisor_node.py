@@ -472,3 +472,7 @@ def exit_without_ros_teardown(code: int) -> NoReturn:
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

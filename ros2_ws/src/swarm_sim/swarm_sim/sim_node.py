@@ -39,8 +39,6 @@ import time
 
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
@@ -52,9 +50,7 @@ from visualization_msgs.msg import MarkerArray
 from swarm_agent.conversions import frames_or_log, stamp_seconds
 from swarm_common import qos
 from swarm_common.conversions import goals_from_msg, shape_from_msg
-from swarm_common.fleet import FleetError
-from swarm_common.ros_support import lean_publisher, lean_subscription
-from swarm_common.shapes import ShapeError
+from swarm_common.ros_support import lean_publisher, lean_subscription, run_node
 from swarm_msgs.msg import (
     AgentState,
     ForceBatch,
@@ -278,22 +274,9 @@ class SimNode(Node):
 
 
 def main(args=None) -> None:
-    """Run the simulator (``ros2 run swarm_sim sim_node``)."""
-    rclpy.init(args=args)
-    try:
-        node = SimNode()
-    except (FleetError, ShapeError, ValueError) as exc:
-        print(f'sim_node: {exc}', file=sys.stderr)
-        rclpy.try_shutdown()
-        sys.exit(2)
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.close()
-        node.destroy_node()
-        rclpy.try_shutdown()
+    """Run the simulator (``ros2 run swarm_sim sim_node``): a bad parameter or file is
+    refused in one line (``swarm_common.ros_support.run_node``)."""
+    run_node(SimNode, 'sim_node', args, stop=SimNode.close)
 
 
 if __name__ == '__main__':

@@ -92,6 +92,9 @@ def world_from_parameters(p: dict) -> tuple[list[RobotSpec], dict[int, RobotType
     """(placed fleet, robot types, world) of sim_node's parameters ``p``; ValueError
     (FleetError, ShapeError, WorldError) naming a bad one."""
     check_parameters(p)
+    if not p['fleet_file']:
+        raise ValueError('parameter fleet_file is not set: give a fleet YAML with robots '
+                         '(id, type, beacon, x, y), e.g. -p fleet_file:=fleet.yaml')
     fleet = load_fleet(p['fleet_file'])
     types = load_robot_types()
     obstacles = list(load_shape(p['shape']).obstacles) if p['shape'] else []
