@@ -1,31 +1,5 @@
-"""Packaging of swarm_agent (ament_python)."""
+"""Packaging of swarm_agent (ament_python): everything is declared in setup.cfg."""
 
-from glob import glob
+from setuptools import setup
 
-from setuptools import find_packages, setup
-
-PACKAGE = 'swarm_agent'
-
-setup(
-    name=PACKAGE,
-    version='0.1.0',
-    packages=find_packages(exclude=['test']),
-    data_files=[
-        ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
-        ('share/' + PACKAGE, ['package.xml']),
-        ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
-        ('share/' + PACKAGE + '/launch', glob('launch/*.launch.py')),
-    ],
-    install_requires=['setuptools'],
-    zip_safe=True,
-    maintainer='Swarm Formation Engineering',
-    maintainer_email='engineering@swarm-formation.dev',
-    description='Robot brain (DSDV, localization, assignment, LQR) and the agent node.',
-    license='Apache-2.0',
-    entry_points={
-        'console_scripts': [
-            'agent_node = swarm_agent.agent_node:main',
-            'composed_node = swarm_agent.composed_node:main',
-        ],
-    },
-)
+setup()
