@@ -83,21 +83,33 @@ class Lens:
     def undistort(self, pixels: np.ndarray) -> np.ndarray:
         """Distorted pixel coordinates (..., 2) -> ideal (pinhole) ones (..., 2), by
         fixed-point iteration of the radial model (what cv2.undistortPoints does, for
-        arrays of any shape)."""
-        d = self._normalize(np.asarray(pixels, dtype=float))
+        arrays of any shape; a single point in plain floats, the tracker's case)."""
+        pixels = np.asarray(pixels, dtype=float)
+        if pixels.shape == (2,):
+            fx, fy, cx, cy = self.K[0, 0], self.K[1, 1], self.K[0, 2], self.K[1, 2]
+            dx, dy = (float(pixels[0]) - cx) / fx, (float(pixels[1]) - cy) / fy
+            x, y = dx, dy
+            for _ in range(LENS_ITERATIONS):
+                r2 = x * x + y * y
+                f = 1.0 + self.k1 * r2 + self.k2 * r2 * r2
+                x, y = dx / f, dy / f
+            return np.array([x * fx + cx, y * fy + cy])
+        d = self._normalize(pixels)
         n = d.copy()
         for _ in range(LENS_ITERATIONS):
             r2 = np.sum(n * n, axis=-1, keepdims=True)
             n = d / (1.0 + self.k1 * r2 + self.k2 * r2 * r2)
         return self._pixels(n)
 
-    def jacobian_det(self, pixel: np.ndarray, step: float = 0.5) -> float:
-        """Area of one distorted pixel in ideal pixels (undistortion's Jacobian)."""
-        p = np.asarray(pixel, dtype=float)
-        q = self.undistort(np.array([p + (step, 0.0), p - (step, 0.0), p + (0.0, step),
-                                     p - (0.0, step)]))
-        J = np.column_stack([q[0] - q[1], q[2] - q[3]]) / (2.0 * step)
-        return abs(float(np.linalg.det(J)))
+    def area_factor(self, ideal: np.ndarray) -> float:
+        """Area of one distorted pixel in ideal pixels at the ideal pixel ``ideal``: the
+        inverse of the distortion's Jacobian determinant, f (f + 2 r^2 f') for the radial
+        factor f(r^2) = 1 + k1 r^2 + k2 r^4."""
+        n = self._normalize(np.asarray(ideal, dtype=float))
+        r2 = float(n[0] * n[0] + n[1] * n[1])
+        f = 1.0 + self.k1 * r2 + self.k2 * r2 * r2
+        df = self.k1 + 2.0 * self.k2 * r2
+        return 1.0 / abs(f * (f + 2.0 * r2 * df))
 
 
 @dataclass
@@ -136,9 +148,9 @@ class Calibration:
     def area_per_pixel(self, pixel: np.ndarray) -> float:
         """Arena area (m^2) of one pixel at ``pixel``: the Jacobian of the homography
         (and of the undistortion) there."""
-        pixel = np.asarray(pixel, dtype=float)
-        area = abs(float(np.linalg.det(homography_jacobian(self.H, self.undistort(pixel)))))
-        return area if self.lens is None else area * self.lens.jacobian_det(pixel)
+        ideal = self.undistort(np.asarray(pixel, dtype=float))
+        area = abs(float(np.linalg.det(homography_jacobian(self.H, ideal))))
+        return area if self.lens is None else area * self.lens.area_factor(ideal)
 
     def save(self, path: str | pathlib.Path) -> None:
         """Write the calibration as YAML (what the tracker's ``calibration_file`` reads)."""
