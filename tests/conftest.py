@@ -13,7 +13,6 @@ import fcntl
 import itertools
 import os
 import pathlib
-import signal
 import subprocess
 import sys
 import tempfile
@@ -103,23 +102,10 @@ class ProcessGroup:
         return self.start([sys.executable, *args], **kwargs)
 
     def cleanup(self) -> None:
-        """SIGINT, then SIGKILL after a grace period, every group still alive."""
-        for proc in self.procs:
-            if proc.poll() is None:
-                try:
-                    os.killpg(proc.pid, signal.SIGINT)
-                except ProcessLookupError:
-                    pass
-        for proc in self.procs:
-            try:
-                # longer than a launcher's own grace for its children (5 s)
-                proc.wait(timeout=12)
-            except subprocess.TimeoutExpired:
-                try:
-                    os.killpg(proc.pid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
-                proc.wait(timeout=5)
+        """SIGINT, then SIGKILL after a grace period longer than a launcher's own grace
+        for its children (5 s), every group still alive."""
+        from swarm_bringup.launcher import stop_groups
+        stop_groups(self.procs, grace=12.0)
 
 
 @pytest.fixture

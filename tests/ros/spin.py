@@ -48,3 +48,32 @@ def beacon_agent(context: rclpy.Context, executor: Executor):
     executor.add_node(agent)
     executor.add_node(probe)
     return agent, probe
+
+
+@contextlib.contextmanager
+def sim_world(directory, robots, probe_name: str = 'probe', **params):
+    """A point-mass SimNode over ``robots`` (RobotSpec) and a ``probe`` node, spun by one
+    executor; the fleet file is written to ``directory``. placement_std_m 0: the robots
+    stand exactly where the test puts them; ``params`` override the sim's parameters."""
+    from rclpy.parameter import Parameter
+
+    from swarm_common.fleet import save_fleet
+    from swarm_sim.sim_node import SimNode
+
+    fleet_file = directory / 'fleet.yaml'
+    save_fleet(fleet_file, robots)
+    settings = {'fleet_file': str(fleet_file), 'backend': 'pointmass',
+                'real_time_factor': 0.0, 'max_agent_lag_s': 0.0, 'half_size': 20.0,
+                'placement_std_m': 0.0, **params}
+    with ros_context() as (context, executor):
+        sim = SimNode(context=context, parameter_overrides=[
+            Parameter(name, value=value) for name, value in settings.items()])
+        probe = rclpy.create_node(probe_name, context=context)
+        executor.add_node(sim)
+        executor.add_node(probe)
+        try:
+            yield executor, sim, probe
+        finally:
+            sim.close()
+            sim.destroy_node()
+            probe.destroy_node()

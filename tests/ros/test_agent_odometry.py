@@ -5,7 +5,6 @@ robot's body frame; the simulator's truth is on /tf as ``truth/agent_K/base_link
 
 from __future__ import annotations
 
-import contextlib
 import math
 
 import numpy as np
@@ -18,7 +17,7 @@ from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist  # n
 from nav_msgs.msg import Odometry  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile  # noqa: E402
-from spin import ros_context, spin_until  # noqa: E402
+from spin import ros_context, sim_world, spin_until  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
 
 from swarm_agent.agent_node import AgentNode, make_executor  # noqa: E402
@@ -32,7 +31,6 @@ from swarm_common.fleet import RobotSpec, save_fleet  # noqa: E402
 from swarm_common.goals import Goal  # noqa: E402
 from swarm_common.shapes import load_shape  # noqa: E402
 from swarm_msgs.msg import AgentState, FormationShape, GoalArray  # noqa: E402
-from swarm_sim.sim_node import SimNode  # noqa: E402
 
 STATE = QoSProfile(**qos.STATE)
 
@@ -193,25 +191,8 @@ def test_composed_agents_each_publish_odom_and_tf(tmp_path, sensor_batch):
             probe.destroy_node()
 
 
-@contextlib.contextmanager
 def _world(tmp_path, robots):
-    fleet_file = tmp_path / 'fleet.yaml'
-    save_fleet(fleet_file, robots)
-    settings = {'fleet_file': str(fleet_file), 'backend': 'pointmass',
-                'real_time_factor': 0.0, 'max_agent_lag_s': 0.0, 'half_size': 20.0,
-                'placement_std_m': 0.0}
-    with ros_context() as (context, executor):
-        sim = SimNode(context=context, parameter_overrides=[
-            Parameter(name, value=value) for name, value in settings.items()])
-        probe = rclpy.create_node('tf_probe', context=context)
-        executor.add_node(sim)
-        executor.add_node(probe)
-        try:
-            yield executor, sim, probe
-        finally:
-            sim.close()
-            sim.destroy_node()
-            probe.destroy_node()
+    return sim_world(tmp_path, robots, 'tf_probe')
 
 
 def test_sim_publishes_the_truth_as_tf_under_its_own_prefix(tmp_path):

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import math
 
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Quaternion, TransformStamped, Twist
+from geometry_msgs.msg import PoseStamped, Quaternion, TransformStamped, Twist
 from nav_msgs.msg import Odometry
 import numpy as np
 
@@ -260,6 +260,17 @@ def base_frame(agent_id: int) -> str:
 def yaw_quaternion(yaw: float) -> Quaternion:
     """A rotation by ``yaw`` (rad) about z as a geometry_msgs/Quaternion."""
     return Quaternion(x=0.0, y=0.0, z=math.sin(0.5 * yaw), w=math.cos(0.5 * yaw))
+
+
+def pose_stamped(x: float, y: float, yaw: float, stamp: Time,
+                 frame_id: str = 'map') -> PoseStamped:
+    """A planar pose (m, m, rad CCW) as a geometry_msgs/PoseStamped in ``frame_id``."""
+    msg = PoseStamped()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.pose.position.x, msg.pose.position.y = float(x), float(y)
+    msg.pose.orientation = yaw_quaternion(yaw)
+    return msg
 
 
 def yaw_of(q) -> float:

@@ -8,6 +8,9 @@ Wiring (logic in camera_tracker.CameraTracker, pixels to metres in arena_calibra
                         stamped with the frame's capture time: what agent_node
                         (external_pose) and bridge_node read
   camera/annotated      sensor_msgs/Image: the frame with ids, headings and flags (Fig. 5.4)
+  calibration_file      camera_calibrate's YAML: the homography, and when measured the lens
+                        (k1, k2: circle centres undistorted) and the colours (white
+                        balance and cover_colors, which replace the fleet file's)
   /diagnostics          diagnostic_msgs/DiagnosticArray: per robot tracked / missing, and
                         the counts of frames, unreadable frames, unknown-colour covers,
                         ambiguous and incomplete covers
@@ -20,7 +23,6 @@ cannot be opened or a frame that cannot be read gives one log line and is retrie
 
 from __future__ import annotations
 
-import math
 import os
 import sys
 
@@ -31,8 +33,9 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import Image
 
+from swarm_agent.conversions import pose_stamped
 from swarm_bridge.arena_calibration import Calibration, CalibrationError
-from swarm_bridge.camera_tracker import annotate, CameraTracker, TrackerConfig
+from swarm_bridge.camera_tracker import annotate, CameraTracker, TrackerConfig, TrackerError
 from swarm_bridge.image_msgs import image_from_msg, image_to_msg, ImageError
 from swarm_common import qos
 from swarm_common.fleet import initial_poses, load_cover_colors, load_fleet
@@ -41,7 +44,8 @@ from swarm_common.ros_support import run_node
 DEFAULTS = TrackerConfig()
 PARAMETERS = {
     'fleet_file': ('', 'Fleet YAML with robots, colours and cover_colors (default: package)'),
-    'calibration_file': ('', 'Homography written by camera_calibrate (required)'),
+    'calibration_file': ('', 'Calibration written by camera_calibrate: homography, lens, '
+                             'colours (required)'),
     'source': ('', "'' for the image topic, else a V4L2 device (/dev/videoN or N) or a "
                    'video file read with OpenCV'),
     'frame_rate': (30.0, 'Frames per second read from a device or file'),
@@ -81,14 +85,18 @@ class CameraTrackerNode(Node):
         flat = [float(v) for v in p['initial_poses']]
         initial = ({r.id: pose[:2] for r, pose in zip(robots, initial_poses(flat, robots))}
                    if len(flat) > 1 else None)
-        self.tracker = CameraTracker(
-            robots, load_cover_colors(p['fleet_file'] or None), calibration,
-            TrackerConfig(saturation_min=int(p['saturation_min']),
-                          value_fraction=float(p['value_fraction']),
-                          hue_tolerance=float(p['hue_tolerance']),
-                          max_speed=float(p['max_speed']), gate_m=float(p['gate_m']),
-                          missing_timeout_s=float(p['missing_timeout'])),
-            initial_poses=initial)
+        config = TrackerConfig(saturation_min=int(p['saturation_min']),
+                               value_fraction=float(p['value_fraction']),
+                               hue_tolerance=float(p['hue_tolerance']),
+                               max_speed=float(p['max_speed']), gate_m=float(p['gate_m']),
+                               missing_timeout_s=float(p['missing_timeout']))
+        try:
+            self.tracker = CameraTracker(robots, load_cover_colors(p['fleet_file'] or None),
+                                         calibration, config, initial_poses=initial)
+        except TrackerError as exc:
+            source = (p['calibration_file'] if calibration.cover_colors is not None
+                      else p['fleet_file'] or 'the fleet file')
+            raise TrackerError(f'{source}: {exc}') from None
         self.radius = {r.id: r.radius for r in robots}
         self.counts = {'frames': 0, 'bad_frames': 0, 'unknown_covers': 0, 'ambiguous': 0,
                        'incomplete': 0}
@@ -113,7 +121,11 @@ class CameraTrackerNode(Node):
         self.get_logger().info(
             f'tracking {len(robots)} robots from '
             f'{p["source"] or self.resolve_topic_name("image")} '
-            f'(calibration {p["calibration_file"]}, residual {calibration.rms_m * 1000:.1f} mm)')
+            f'(calibration {p["calibration_file"]}, residual {calibration.rms_m * 1000:.1f} mm; '
+            + (f'lens k1 {calibration.lens.k1:.4f} k2 {calibration.lens.k2:.4f}; '
+               if calibration.lens is not None else 'no lens distortion; ')
+            + ('measured colours)' if calibration.cover_colors is not None
+               else "the fleet file's colours)"))
 
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -186,13 +198,7 @@ class CameraTrackerNode(Node):
         if self._problem is not None:
             self._clear('frames readable again')
         for k, (x, y, yaw) in result.poses.items():
-            msg = PoseStamped()
-            msg.header.stamp = stamp
-            msg.header.frame_id = 'map'
-            msg.pose.position.x, msg.pose.position.y = float(x), float(y)
-            msg.pose.orientation.z = math.sin(yaw / 2.0)
-            msg.pose.orientation.w = math.cos(yaw / 2.0)
-            self._pose_pubs[k].publish(msg)
+            self._pose_pubs[k].publish(pose_stamped(x, y, yaw, stamp))
         missing = set(result.missing)
         for k in sorted(missing - self._missing):
             self.get_logger().warning(f'agent {k} missing: not seen for '

@@ -29,7 +29,6 @@ config/hil.yaml. Runs on the wall clock, as real robots do.
 
 from __future__ import annotations
 
-import math
 import os
 import pathlib
 import sys
@@ -43,7 +42,7 @@ from rclpy.qos import QoSProfile
 from rclpy.time import Time
 from sensor_msgs.msg import Image
 
-from swarm_agent.conversions import frames_or_log, frames_to_msg
+from swarm_agent.conversions import frames_or_log, frames_to_msg, pose_stamped
 from swarm_bridge.camera_render import CameraRenderer, Cover, sim_camera_config, SimCamera
 from swarm_bridge.emulator import EmulatedRadio, PtyEmulator
 from swarm_bridge.hil_mesh import HilMesh
@@ -155,13 +154,13 @@ class HilWorldNode(Node):
         covers = []
         for k, board in self.boards.items():
             x, y, yaw = board.pose()
-            self._truth_pubs[k].publish(_pose_msg(x, y, yaw, stamp))
+            self._truth_pubs[k].publish(pose_stamped(x, y, yaw, stamp))
             if self._sim_camera is not None:
                 covers.append(Cover(self._covers[k][0], self._covers[k][1], x, y, yaw))
                 continue
             if noise > 0.0:
                 x, y = np.array([x, y]) + self._rng.normal(0.0, noise, 2)
-            self._pose_pubs[k].publish(_pose_msg(x, y, yaw, stamp))
+            self._pose_pubs[k].publish(pose_stamped(x, y, yaw, stamp))
         if self._sim_camera is not None:
             self._sim_camera.capture(now.nanoseconds * 1e-9, covers)
         if self._mesh is not None:
@@ -193,16 +192,6 @@ class HilWorldNode(Node):
         if self._link is not None and self._link.is_symlink():
             self._link.unlink(missing_ok=True)
         self.emulator.close()
-
-
-def _pose_msg(x: float, y: float, yaw: float, stamp) -> PoseStamped:
-    msg = PoseStamped()
-    msg.header.stamp = stamp
-    msg.header.frame_id = 'map'
-    msg.pose.position.x, msg.pose.position.y = float(x), float(y)
-    msg.pose.orientation.z = math.sin(yaw / 2.0)
-    msg.pose.orientation.w = math.cos(yaw / 2.0)
-    return msg
 
 
 def main(args: list[str] | None = None) -> None:

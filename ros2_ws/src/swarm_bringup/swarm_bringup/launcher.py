@@ -10,6 +10,7 @@ no orphans are left.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 import os
 import pathlib
 import signal
@@ -20,6 +21,27 @@ import time
 from swarm_agent.prefork import die_with_parent, ForkedProcess, ForkServer
 from swarm_bringup.launch_plan import NodeSpec, ros_arguments
 
+
+def stop_groups(procs: Iterable[subprocess.Popen], grace: float) -> None:
+    """SIGINT to the process group of every process still running, then SIGKILL to the
+    groups still alive ``grace`` seconds later (each process leads its own group)."""
+    procs = list(procs)
+    for proc in procs:
+        if proc.poll() is None:
+            try:
+                os.killpg(proc.pid, signal.SIGINT)
+            except ProcessLookupError:
+                pass
+    deadline = time.monotonic() + grace
+    for proc in procs:
+        try:
+            proc.wait(timeout=max(0.1, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            proc.wait(timeout=5)
 
 class Children:
     """Child processes, each in its own process group, with logs in out/logs."""
@@ -116,20 +138,6 @@ class Children:
         return sum(self._rss_of(proc.pid) for proc in self.procs.values())
 
     def stop_all(self, grace: float = 5.0) -> None:
-        for name, proc in self.procs.items():
-            if proc.poll() is None:
-                self.expected_exit.add(name)
-                try:
-                    os.killpg(proc.pid, signal.SIGINT)
-                except ProcessLookupError:
-                    pass
-        deadline = time.monotonic() + grace
-        for proc in self.procs.values():
-            try:
-                proc.wait(timeout=max(0.1, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                try:
-                    os.killpg(proc.pid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
-                proc.wait(timeout=5)
+        self.expected_exit.update(name for name, proc in self.procs.items()
+                                  if proc.poll() is None)
+        stop_groups(self.procs.values(), grace)

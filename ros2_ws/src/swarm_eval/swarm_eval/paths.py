@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 import pathlib
+from typing import Any
 
 
 def repo_root() -> pathlib.Path:
@@ -13,3 +15,12 @@ def repo_root() -> pathlib.Path:
         if (parent / 'scripts' / 'env.sh').is_file():
             return parent
     return pathlib.Path.cwd()
+
+
+def write_json(directory: str | pathlib.Path, name: str, data: Any) -> pathlib.Path:
+    """Write ``data`` as indented JSON to ``directory/name`` (the directory is made)."""
+    out = pathlib.Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / name
+    path.write_text(json.dumps(data, indent=1) + '\n', encoding='utf-8')
+    return path

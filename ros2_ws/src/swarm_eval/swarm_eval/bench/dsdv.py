@@ -26,9 +26,7 @@ such. Writes bench_dsdv.json (every trial and the table rows) into --out when gi
 from __future__ import annotations
 
 import argparse
-import json
 import math
-import pathlib
 import sys
 import time
 
@@ -37,6 +35,7 @@ from scipy.spatial import cKDTree
 
 from swarm_agent.dsdv import DsdvConfig
 from swarm_agent.sim_net import SimulatedNet
+from swarm_eval.paths import write_json
 from swarm_sim.medium import FRAME_OVERHEAD_BYTES
 
 TICK = 0.25
@@ -193,10 +192,8 @@ def main(argv: list[str] | None = None) -> int:
                   f'{_fmt(agg, "link_addition")} | {agg["routing_bytes_per_s_per_agent"]:.0f} / '
                   f'{agg["routing_bytes_per_s_per_agent_with_overhead"]:.0f} |', flush=True)
     if args.out:
-        out = pathlib.Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / 'bench_dsdv.json').write_text(
-            json.dumps({'period_s': period, 'table': table, 'trials': rows}, indent=2) + '\n')
+        write_json(args.out, 'bench_dsdv.json', {'period_s': period, 'table': table,
+                                                 'trials': rows})
     return 0
 
 

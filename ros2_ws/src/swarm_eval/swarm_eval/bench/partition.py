@@ -10,14 +10,13 @@ writes bench_partition.json into --out when given.
 from __future__ import annotations
 
 import argparse
-import json
-import pathlib
 import sys
 
 import numpy as np
 
 from swarm_common.robot_types import default_type_counts, load_robot_types
 from swarm_common.shapes import load_shape
+from swarm_eval.paths import write_json
 from swarm_mission.partition import METHODS, partition
 
 
@@ -68,9 +67,7 @@ def main(argv: list[str] | None = None) -> int:
                   f'iterations {row["iterations"]}, eps_t {row["epsilon_t"]:.2f}, '
                   f'eps_g {row["epsilon_g"]:.3f}', flush=True)
     if args.out:
-        out = pathlib.Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / 'bench_partition.json').write_text(json.dumps(results, indent=1))
+        write_json(args.out, 'bench_partition.json', results)
     return 0
 
 

@@ -94,6 +94,9 @@ def scaling_table(results: dict) -> list[str]:
         rows = [r for r in s.get('partition', []) if r['method'] == method]
         return cells(rows, lambda r: fmt_s(r['seconds_median']))
 
+    def timed(section: str, key: str) -> list[str]:
+        return cells(s.get(section), lambda r: fmt_s(r[key]))
+
     table = [
         ('DSDV convergence after a link break (simulated time)', 'dsdv',
          cells(s.get('dsdv'), dsdv('link_break_s'))),
@@ -102,25 +105,25 @@ def scaling_table(results: dict) -> list[str]:
         ('DSDV routing traffic per agent (payload)', 'dsdv',
          cells(s.get('dsdv'), lambda r: f'{r["routing_bytes_per_s_per_agent"]:.0f} B/s')),
         ('Trilateration: localization round of every agent', 'trilateration',
-         cells(s.get('trilateration'), lambda r: fmt_s(r['round_s']))),
+         timed('trilateration', 'round_s')),
         ('Partition: bubble packing', 'partition', part('bubble')),
         ('Partition: randomized fractals', 'partition', part('fractal')),
         ('Visibility graph build (one type, shape change)', 'cost_rows',
-         cells(s.get('cost_rows'), lambda r: fmt_s(r['graph_build_s']))),
+         timed('cost_rows', 'graph_build_s')),
         ('Cost row of one agent (median agent, steady round)', 'cost_rows',
-         cells(s.get('cost_rows'), lambda r: fmt_s(r['row_median_s']))),
+         timed('cost_rows', 'row_median_s')),
         ('Cost row of one agent (worst agent, first round after new goals)', 'cost_rows',
-         cells(s.get('cost_rows'), lambda r: fmt_s(r['row_worst_first_s']))),
+         timed('cost_rows', 'row_worst_first_s')),
         ('Cost rows of every agent (one process, steady round)', 'cost_rows',
-         cells(s.get('cost_rows'), lambda r: fmt_s(r['all_rows_s']))),
+         timed('cost_rows', 'all_rows_s')),
         ('Hungarian assignment over every row (all types)', 'assignment',
-         cells(s.get('assignment'), lambda r: fmt_s(r['assign_all_s']))),
+         timed('assignment', 'assign_all_s')),
         ('Hungarian assignment of one type (what one agent solves)', 'assignment',
-         cells(s.get('assignment'), lambda r: fmt_s(r['assign_one_type_s']))),
+         timed('assignment', 'assign_one_type_s')),
         ('Radio medium: links (range + line of sight)', 'medium',
-         cells(s.get('medium'), lambda r: fmt_s(r['links_s']))),
+         timed('medium', 'links_s')),
         ('Radio medium: one broadcast per agent sent and delivered', 'medium',
-         cells(s.get('medium'), lambda r: fmt_s(r['transmit_deliver_s']))),
+         timed('medium', 'transmit_deliver_s')),
     ]
     lines = ['| Algorithm | ' + ' | '.join(f'{n} agents' for n in sizes) + ' |',
              '|---|' + '---|' * len(sizes)]
