@@ -19,7 +19,6 @@ SRC = pathlib.Path(__file__).resolve().parents[2] / 'ros2_ws' / 'src'
 NODES = [
     ('swarm_agent', 'agent_node', 'agent.yaml'),
     ('swarm_mission', 'mission_node', 'mission.yaml'),
-    ('swarm_sim', 'sim_node', 'sim.yaml'),
 ]
 
 

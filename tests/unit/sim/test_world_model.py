@@ -230,7 +230,7 @@ def test_the_evaluator_and_sim_node_build_the_same_world(tmp_path):
     from swarm_common.fleet import save_fleet
     from swarm_common.shapes import load_shape
     from swarm_sim.headless import HeadlessSwarm, Scenario
-    from swarm_sim.sim_parameters import PARAMETERS, world_from_parameters
+    from swarm_sim.sim_parameters import SIM_PARAMETERS, world_from_parameters
 
     swarm = HeadlessSwarm(Scenario(shape=load_shape('circle_314'),
                                    type_counts={1: 4}, n_beacons=3, duration_s=1.0))
@@ -238,7 +238,7 @@ def test_the_evaluator_and_sim_node_build_the_same_world(tmp_path):
     assert isinstance(swarm.world.backend, PointMassBackend)
     assert swarm.world.alive is swarm.alive
     save_fleet(tmp_path / 'fleet.yaml', FLEET)
-    params = {name: default for name, (default, _) in PARAMETERS.items()}
+    params = {name: spec.default for name, spec in SIM_PARAMETERS.items()}
     params.update(fleet_file=str(tmp_path / 'fleet.yaml'), backend='pointmass')
     _, _, world = world_from_parameters(params)
     assert type(world) is World and world.dt == pytest.approx(0.01)

@@ -57,12 +57,7 @@ from geometry_msgs.msg import (
 )
 from nav_msgs.msg import Odometry
 import numpy as np
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    SetParametersResult,
-)
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -88,9 +83,10 @@ from swarm_agent.conversions import (
     yaw_of,
 )
 from swarm_agent.packet import Packet
-from swarm_agent.parameters import ParameterError, ParamSpec, set_live, spec_table
+from swarm_agent.parameters import ParameterError, set_live, spec_table
 from swarm_common import qos
 from swarm_common.conversions import goals_from_msg, shape_from_msg
+from swarm_common.ros_parameters import declare
 from swarm_common.ros_support import lean_publisher, lean_subscription, run_node
 from swarm_common.shapes import ShapeError
 from swarm_mission.partition import partition, PartitionError
@@ -139,25 +135,10 @@ PARAMETERS = {
 BRAIN_PARAMETERS = spec_table(BrainConfig)
 
 
-def brain_descriptor(spec: ParamSpec) -> ParameterDescriptor:
-    """The ROS descriptor of a generated parameter: description, range, read-only."""
-    descriptor = ParameterDescriptor(description=spec.description, read_only=not spec.live)
-    if isinstance(spec.default, bool):
-        return descriptor
-    if isinstance(spec.default, int) and spec.low is not None and spec.high is not None:
-        descriptor.integer_range = [IntegerRange(from_value=int(spec.low),
-                                                 to_value=int(spec.high), step=1)]
-    elif isinstance(spec.default, float) and spec.low is not None and spec.high is not None:
-        descriptor.floating_point_range = [FloatingPointRange(
-            from_value=float(spec.low), to_value=float(spec.high), step=0.0)]
-    return descriptor
-
-
 def declare_brain_parameters(node: Node) -> dict:
-    """Declare every generated brain parameter on ``node``; their values by name."""
-    for name, spec in BRAIN_PARAMETERS.items():
-        node.declare_parameter(name, spec.default, brain_descriptor(spec))
-    return {name: node.get_parameter(name).value for name in BRAIN_PARAMETERS}
+    """Declare every generated brain parameter on ``node`` (description, range,
+    read-only: swarm_common.ros_parameters); their values by name."""
+    return declare(node, BRAIN_PARAMETERS)
 
 
 def set_brain_parameters(brains, params) -> SetParametersResult:

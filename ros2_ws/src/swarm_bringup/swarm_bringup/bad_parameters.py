@@ -56,6 +56,7 @@ CASES: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ('sim_node', 'swarm_sim.sim_node',
      ('-p', f'fleet_file:={SAMPLE_FLEET}', '-p', 'proximity_std:=-1.0')),
     ('sim_node', 'swarm_sim.sim_node', ('-p', 'physics_rate_hz:=abc')),
+    ('sim_node', 'swarm_sim.sim_node', ('-p', 'medium.latency_s:=-1.0')),
     ('monitor_node', 'swarm_bringup.monitor_node', ('-p', 'record_period_s:=abc')),
     ('live_view_node', 'swarm_sim.live_view_node', ('-p', 'port:=70000')),
     ('live_view_node', 'swarm_sim.live_view_node', ('-p', f'fleet_file:={MISSING}')),

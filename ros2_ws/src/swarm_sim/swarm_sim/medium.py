@@ -26,6 +26,7 @@ import shapely
 from shapely.geometry import box, Polygon
 
 from swarm_agent.packet import BROADCAST, Packet
+from swarm_agent.parameters import tunable
 
 FRAME_OVERHEAD_BYTES = 18  # XBee API frame + 802.15.4 header around the payload
 WALL_THICKNESS_M = 1.0
@@ -92,14 +93,20 @@ class SweepingWall:
 
 @dataclass
 class MediumConfig:
-    """Radio parameters (YAML defaults in swarm_sim/config/medium.yaml)."""
+    """Radio parameters. The ``tunable`` fields are sim_node's ``medium.*`` parameters
+    (swarm_sim.sim_parameters); range and loss are its live ``radio_range_m`` and
+    ``loss`` (``RUNTIME_SETTINGS``)."""
 
     range_m: float = 25.0            # thesis 4.1
-    line_of_sight: bool = True       # thesis 4.1: obstacles cut links
+    line_of_sight: bool = tunable(True, 'Obstacles cut radio links (thesis 4.1)')
     loss: float = 0.0                # per-receiver packet loss probability
-    latency_s: float = 0.005         # propagation + processing
-    bandwidth_bps: float = 250_000.0  # 802.15.4 / XBee air rate
-    range_noise_std: float = 0.3     # m, TOA ranging noise (not given by the thesis)
+    latency_s: float = tunable(0.005, 'Radio latency, propagation and processing (s)',
+                               low=0.0, high=10.0)
+    bandwidth_bps: float = tunable(250_000.0, 'Radio air rate per transmitter (bit/s; '
+                                              '802.15.4 / XBee: 250 kbit/s)',
+                                   low=1.0, high=1e9)
+    range_noise_std: float = tunable(0.3, 'TOA ranging noise (m, not given by the thesis)',
+                                     low=0.0, high=100.0)
 
 
 @dataclass

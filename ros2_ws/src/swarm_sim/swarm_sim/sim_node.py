@@ -1,11 +1,14 @@
 """sim_node: the simulated world of the swarm (replaces the thesis's Gazebo, 4.1).
 
-ROS wiring of the world model (``swarm_sim.world_model.World``, as the headless evaluator
-runs it): parameters (``swarm_sim.sim_parameters``), commands and faults in, readings out
-as messages (``swarm_sim.conversions``), ``/clock``. Paced by ``swarm_sim.pacing``
-(``real_time_factor``, ``max_agent_lag_s`` behind the slowest agent); as fast as
-possible, it steps once every agent has answered the current time (a guard condition,
-after the callbacks of its wait), else at ``clock_rate_hz``.
+ROS wiring of the world model (``swarm_sim.world_model.World``, as the headless
+evaluator runs it): parameters (generated from
+``swarm_sim.sim_parameters.SimParameters``, the radio medium's ``medium.*`` included;
+read-only but ``loss``, ``radio_range_m``, ``radio_wall_speed_mps`` and
+``real_time_factor``, which the on-set callback applies), commands and faults in,
+readings out as messages (``swarm_sim.conversions``), ``/clock``. Paced by
+``swarm_sim.pacing`` (``real_time_factor``, ``max_agent_lag_s`` behind the slowest
+agent); as fast as possible, it steps once every agent has answered the current time (a
+guard condition, after the callbacks of its wait), else at ``clock_rate_hz``.
 
 Topics (K: a robot id; per-robot topics have no default QoS event handlers,
 ``swarm_common.ros_support``: with them 50 robots made a wait set of 750 entities)
@@ -38,7 +41,7 @@ import sys
 import time
 
 from geometry_msgs.msg import WrenchStamped
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
@@ -50,6 +53,7 @@ from visualization_msgs.msg import MarkerArray
 from swarm_agent.conversions import frames_or_log, stamp_seconds
 from swarm_common import qos
 from swarm_common.conversions import goals_from_msg, shape_from_msg
+from swarm_common.ros_parameters import declare
 from swarm_common.ros_support import lean_publisher, lean_subscription, run_node
 from swarm_msgs.msg import (
     AgentState,
@@ -65,7 +69,7 @@ from swarm_sim.markers import swarm_markers
 from swarm_sim.medium import RUNTIME_SETTINGS
 from swarm_sim.pacing import Pacer
 from swarm_sim.run_record import RunRecord
-from swarm_sim.sim_parameters import PARAMETERS, world_from_parameters
+from swarm_sim.sim_parameters import SIM_PARAMETERS, world_from_parameters
 from swarm_sim.world_model import Readings
 
 # Wall seconds between repeats of an unchanged /clock while the world waits for agents.
@@ -77,9 +81,8 @@ class SimNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__('sim', **kwargs)
-        for name, (default, text) in PARAMETERS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=text))
-        p = self.params = {name: self.get_parameter(name).value for name in PARAMETERS}
+        # Generated from SimParameters: described, ranged, read-only but the live ones.
+        p = self.params = declare(self, SIM_PARAMETERS)
         self.fleet, self.types, self.world = world_from_parameters(p)
         self.ids = self.world.ids
         if p['radio_wall_speed_mps'] > 0:

@@ -1,15 +1,25 @@
-"""sim_node's parameters, declared in one place, and the world they build.
+"""sim_node's parameters, generated from one configuration dataclass, and the world they
+build.
 
-Each entry is ``name: (default, description)``; config/sim.yaml repeats the defaults
-(tests/unit/test_node_parameters.py checks that they agree).
+``SimParameters`` holds every parameter of the simulator, each a ``tunable`` field
+(swarm_agent.parameters: description, range, whether it may change while the world
+runs), with the radio medium's own configuration nested (``medium.latency_s``,
+``medium.bandwidth_bps``, ... generated from ``swarm_sim.medium.MediumConfig``). sim_node
+declares one ROS parameter per spec of ``SIM_PARAMETERS`` (read-only but for the live
+ones, which its on-set callback applies: ``loss``, ``radio_range_m``,
+``radio_wall_speed_mps``, ``real_time_factor``); ``world_from_parameters`` checks the
+values against their specs and builds the world. No YAML mirrors the defaults: ``ros2
+param dump /sim`` lists them, ``ros2 param describe`` explains each.
 """
 
 from __future__ import annotations
 
-import math
+import dataclasses
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from swarm_agent.parameters import configured, spec_table, tunable
 from swarm_common.fleet import load_fleet, place_fleet, PLACEMENT_STD_M, RobotSpec
 from swarm_common.robot_types import load_robot_types, RobotType
 from swarm_common.shapes import load_shape
@@ -17,61 +27,95 @@ from swarm_sim.medium import MediumConfig, RadioMedium
 from swarm_sim.physics import make_backend
 from swarm_sim.world_model import World, WorldConfig
 
-PARAMETERS = {
-    'fleet_file': ('', 'Fleet YAML: robots with id, type, beacon, x, y, yaw'),
-    'placement_std_m': (PLACEMENT_STD_M, 'Robots spawn this far (m per axis, Gaussian, '
-                                         'seeded) from their fleet positions, the '
-                                         "agents' deployment prior"),
-    'shape': ('', 'Shape spec whose obstacles populate the world (built-in or file)'),
-    'backend': ('auto', 'Physics: pybullet, pointmass, or auto (pybullet if available)'),
-    'physics_rate_hz': (100.0, 'Physics steps per simulated second'),
-    'real_time_factor': (1.0, 'Target sim/wall speed ratio; 0 runs as fast as possible'),
-    'clock_rate_hz': (50.0, 'Wall-clock rate of /clock updates and stepping batches'),
-    'imu_rate_hz': (10.0, 'IMU samples per simulated second'),
-    'gps_rate_hz': (1.0, 'Beacon GPS fixes per simulated second'),
-    'gps_std': (2.0, 'GPS noise per axis (m), thesis 4.2'),
-    'range_rate_hz': (1.0, 'TOA ranging rate per simulated second'),
-    'radio_rate_hz': (20.0, 'Radio delivery batches per simulated second, per robot'),
-    'proximity_rate_hz': (10.0, 'Proximity scans per simulated second; 0: no sensor'),
-    'proximity_range_m': (3.0, 'Proximity sensor range (m): neighbours within it are seen'),
-    'proximity_std': (0.02, 'Proximity offset noise per axis (m)'),
-    'sensor_batch': (False, 'Publish imu, ranges, proximity and radio deliveries of every '
-                            'robot in one /swarm/sensor_batch per step and take force '
-                            'commands from /swarm/cmd_batch (composed agents) instead of '
-                            'the per-robot topics'),
-    'truth_rate_hz': (2.0, 'Ground-truth publication rate (sim time)'),
-    'marker_rate_hz': (1.0, 'RViz marker rate on /swarm/markers (sim time); 0: none'),
-    'command_timeout_s': (0.5, 'Force commands older than this are dropped to zero'),
-    'max_agent_lag_s': (0.2, 'Sim time the world may run ahead of the slowest agent; 0: off'),
-    'truth_subscribers': (0, 'Hold the clock at 0 until this many /swarm/truth subscribers '
-                             "(e.g. the launcher's monitor) have matched, for at most "
-                             'wait_for_agents_s'),
-    'wait_for_agents_s': (60.0, "Wall seconds to wait for every robot's first command"),
-    'agent_stall_s': (10.0, 'Wall seconds after which a silent agent is not waited for'),
-    'max_force': (50.0, 'Force commands are clamped to this magnitude (N)'),
-    'loss': (0.0, 'Radio packet loss probability (settable at run time)'),
-    'radio_range_m': (25.0, 'Radio range in metres, thesis 4.1 (settable at run time)'),
-    'radio_wall_speed_mps': (0.0, 'Speed of a radio-opaque wall sweeping the workspace '
-                                  'along +x from when set; 0: none (settable at run time)'),
-    'half_size': (50.0, 'Workspace half width (m)'),
-    'terrain': ('rough', 'pybullet terrain: rough or flat'),
-    'seed': (0, 'Seed of the noise generators and the terrain'),
-    'record_dir': ('', 'Folder for the run record (truth.csv, medium.json, separation.json); '
-                       'empty: none'),
-    'gui': (False, 'pybullet GUI (needs a display)'),
-}
+MAX_RATE_HZ = 10_000.0
+MAX_S = 86_400.0   # a day, the longest wait or timeout that makes sense
 
 
-def check_parameters(p: dict) -> None:
-    """ValueError naming the proximity parameter that is out of range, and the fix."""
-    for name, ok, wanted, example in (
-            ('proximity_rate_hz', p['proximity_rate_hz'] >= 0, '>= 0 Hz (0: no sensor)', 10.0),
-            ('proximity_range_m', p['proximity_range_m'] > 0, 'above 0 m', 3.0),
-            ('proximity_std', p['proximity_std'] >= 0, '>= 0 m', 0.02)):
-        if not (math.isfinite(p[name]) and ok):
-            raise ValueError(f'parameter {name} must be a finite number {wanted}, got '
-                             f'{p[name]}: set it in config/sim.yaml or with --ros-args '
-                             f'-p {name}:={example}')
+@dataclass
+class SimParameters:
+    """Every parameter of sim_node (module docstring); ranges are inclusive."""
+
+    fleet_file: str = tunable('', 'Fleet YAML: robots with id, type, beacon, x, y, yaw')
+    placement_std_m: float = tunable(
+        PLACEMENT_STD_M, "Robots spawn this far (m per axis, Gaussian, seeded) from their "
+        "fleet positions, the agents' deployment prior", low=0.0, high=10.0)
+    shape: str = tunable('', 'Shape spec whose obstacles populate the world (built-in or '
+                             'file)')
+    backend: str = tunable('auto', 'Physics: pybullet, pointmass, or auto (pybullet if '
+                                   'available)')
+    physics_rate_hz: float = tunable(100.0, 'Physics steps per simulated second',
+                                     low=1.0, high=MAX_RATE_HZ)
+    real_time_factor: float = tunable(1.0, 'Target sim/wall speed ratio; 0 runs as fast '
+                                           'as possible (settable at run time)',
+                                      low=0.0, high=1000.0, live=True)
+    clock_rate_hz: float = tunable(50.0, 'Wall-clock rate of /clock updates and stepping '
+                                         'batches', low=1.0, high=1000.0)
+    imu_rate_hz: float = tunable(10.0, 'IMU samples per simulated second',
+                                 low=0.1, high=MAX_RATE_HZ)
+    gps_rate_hz: float = tunable(1.0, 'Beacon GPS fixes per simulated second',
+                                 low=0.01, high=MAX_RATE_HZ)
+    gps_std: float = tunable(2.0, 'GPS noise per axis (m), thesis 4.2', low=0.0, high=100.0)
+    range_rate_hz: float = tunable(1.0, 'TOA ranging rate per simulated second',
+                                   low=0.01, high=MAX_RATE_HZ)
+    radio_rate_hz: float = tunable(20.0, 'Radio delivery batches per simulated second, per '
+                                         'robot; 0: every delivery at once',
+                                   low=0.0, high=MAX_RATE_HZ)
+    proximity_rate_hz: float = tunable(10.0, 'Proximity scans per simulated second; 0: no '
+                                             'sensor', low=0.0, high=MAX_RATE_HZ)
+    proximity_range_m: float = tunable(3.0, 'Proximity sensor range (m): neighbours within '
+                                            'it are seen', low=0.01, high=1000.0)
+    proximity_std: float = tunable(0.02, 'Proximity offset noise per axis (m)',
+                                   low=0.0, high=10.0)
+    sensor_batch: bool = tunable(False, 'Publish imu, ranges, proximity and radio '
+                                        'deliveries of every robot in one '
+                                        'swarm/sensor_batch per step and take force '
+                                        'commands from swarm/cmd_batch (composed agents) '
+                                        'instead of the per-robot topics')
+    truth_rate_hz: float = tunable(2.0, 'Ground-truth publication rate (sim time)',
+                                   low=0.01, high=MAX_RATE_HZ)
+    marker_rate_hz: float = tunable(1.0, 'RViz marker rate on swarm/markers (sim time); 0: '
+                                         'none', low=0.0, high=MAX_RATE_HZ)
+    command_timeout_s: float = tunable(0.5, 'Force commands older than this are dropped to '
+                                            'zero (s)', low=0.001, high=MAX_S)
+    max_agent_lag_s: float = tunable(0.2, 'Sim time the world may run ahead of the slowest '
+                                          'agent (s); 0: off', low=0.0, high=MAX_S)
+    truth_subscribers: int = tunable(0, 'Hold the clock at 0 until this many swarm/truth '
+                                        "subscribers (e.g. the launcher's monitor) have "
+                                        'matched, for at most wait_for_agents_s',
+                                     low=0, high=1000)
+    wait_for_agents_s: float = tunable(60.0, "Wall seconds to wait for every robot's first "
+                                             'command', low=0.0, high=MAX_S)
+    agent_stall_s: float = tunable(10.0, 'Wall seconds after which a silent agent is not '
+                                         'waited for', low=0.0, high=MAX_S)
+    max_force: float = tunable(50.0, 'Force commands are clamped to this magnitude (N)',
+                               low=0.001, high=1e6)
+    loss: float = tunable(0.0, 'Radio packet loss probability (settable at run time)',
+                          low=0.0, high=1.0, live=True)
+    radio_range_m: float = tunable(25.0, 'Radio range in metres, thesis 4.1 (settable at '
+                                         'run time)', low=0.01, high=1e6, live=True)
+    radio_wall_speed_mps: float = tunable(0.0, 'Speed of a radio-opaque wall sweeping the '
+                                               'workspace along +x from when set; 0: none '
+                                               '(settable at run time)',
+                                          low=0.0, high=1000.0, live=True)
+    half_size: float = tunable(50.0, 'Workspace half width (m)', low=0.1, high=1e5)
+    terrain: str = tunable('rough', 'pybullet terrain: rough or flat')
+    seed: int = tunable(0, 'Seed of the noise generators and the terrain',
+                        low=0, high=2**31 - 1)
+    record_dir: str = tunable('', 'Folder for the run record (truth.csv, medium.json, '
+                                  'separation.json); empty: none')
+    gui: bool = tunable(False, 'pybullet GUI (needs a display)')
+    # The radio medium's other settings (its range and loss are radio_range_m and loss).
+    medium: MediumConfig = field(default_factory=MediumConfig)
+
+
+# name -> ParamSpec, dotted for the medium's (``medium.latency_s``)
+SIM_PARAMETERS = spec_table(SimParameters)
+
+
+def check_parameters(p: dict) -> SimParameters:
+    """The configuration of the values ``p`` (by parameter name); ParameterError (a
+    ValueError) names the first one out of its type or range and the fix."""
+    return configured(SimParameters(), {name: p[name] for name in SIM_PARAMETERS})
 
 
 def world_config(p: dict) -> WorldConfig:
@@ -91,7 +135,7 @@ def world_config(p: dict) -> WorldConfig:
 def world_from_parameters(p: dict) -> tuple[list[RobotSpec], dict[int, RobotType], World]:
     """(placed fleet, robot types, world) of sim_node's parameters ``p``; ValueError
     (FleetError, ShapeError, WorldError) naming a bad one."""
-    check_parameters(p)
+    config = check_parameters(p)
     if not p['fleet_file']:
         raise ValueError('parameter fleet_file is not set: give a fleet YAML with robots '
                          '(id, type, beacon, x, y), e.g. -p fleet_file:=fleet.yaml')
@@ -106,6 +150,6 @@ def world_from_parameters(p: dict) -> tuple[list[RobotSpec], dict[int, RobotType
     rng = np.random.default_rng(p['seed'])
     backend = make_backend(p['backend'], fleet, types, obstacles, p['half_size'],
                            p['terrain'], p['seed'], p['gui'], p['physics_rate_hz'])
-    medium = RadioMedium(MediumConfig(loss=p['loss'], range_m=p['radio_range_m']), rng,
-                         obstacles)
+    medium = RadioMedium(dataclasses.replace(config.medium, loss=p['loss'],
+                                             range_m=p['radio_range_m']), rng, obstacles)
     return fleet, types, World(fleet, types, backend, world_config(p), rng, obstacles, medium)
