@@ -1,6 +1,8 @@
 """camera_tracker_node in-process: rendered frames on the image topic or from a video file
-become /agent_K/pose within a centimetre; an unreadable frame or a missing camera is one
-log line and a count, and the node keeps going."""
+become /agent_K/pose within a centimetre, through a wide-angle lens and a shifted white
+balance too once camera_calibrate measured both; an unreadable frame or a missing camera
+is one log line and a count, and the node keeps going; a calibration file that lacks a
+fleet colour is refused naming the file."""
 
 from __future__ import annotations
 
@@ -19,8 +21,10 @@ from rclpy.qos import QoSProfile  # noqa: E402
 from sensor_msgs.msg import Image  # noqa: E402
 from spin import ros_context, spin_until  # noqa: E402
 
-from swarm_bridge.arena_calibration import calibrate  # noqa: E402
-from swarm_bridge.camera_render import CameraRenderer, Cover  # noqa: E402
+from swarm_bridge.arena_calibration import calibrate, Calibration  # noqa: E402
+from swarm_bridge.camera_calibrate import main as calibrate_main  # noqa: E402
+from swarm_bridge.camera_render import CameraConfig, CameraRenderer, Cover  # noqa: E402
+from swarm_bridge.camera_tracker import TrackerError  # noqa: E402
 from swarm_bridge.camera_tracker_node import CameraTrackerNode, IMAGE_QOS  # noqa: E402
 from swarm_bridge.image_msgs import image_to_msg  # noqa: E402
 from swarm_common import qos  # noqa: E402
@@ -32,8 +36,8 @@ POSES = [(-0.5, -0.4, 0.3), (0.4, -0.5, 2.0), (0.5, 0.5, -1.2), (-0.4, 0.5, 3.0)
          (0.0, 0.0, -2.5)]
 
 
-def _scene(tmp_path):
-    renderer = CameraRenderer()
+def _scene(tmp_path, **camera):
+    renderer = CameraRenderer(CameraConfig(**camera))
     calibrate(renderer.render([])).save(tmp_path / 'cal.yaml')
     covers = [Cover(COLORS[r.color], r.radius, *p) for r, p in zip(ROBOTS, POSES)]
     return renderer, renderer.render(covers)
@@ -102,6 +106,51 @@ def test_frames_on_the_image_topic_become_poses_and_a_bad_frame_is_counted(tmp_p
             node.close()
             node.destroy_node()
             probe.destroy_node()
+
+
+def test_a_wide_lens_and_a_warm_white_balance_once_calibrated(tmp_path):
+    """k1 -0.08 (corner markers 6-7 px off) and a camera balanced for colder light: the
+    printed colours miss robots (test_camera_lens_colors); camera_calibrate's three steps
+    into one file and the node finds all within a centimetre and 3 degrees."""
+    sim = ['--sim', '--k1', '-0.08', '--k2', '0.01', '--white-balance', '1.0', '0.85',
+           '0.65', '--out', str(tmp_path / 'cal.yaml')]
+    for step in (['--lens'], [], ['--colors']):
+        assert calibrate_main(step + sim) == 0
+    renderer = CameraRenderer(CameraConfig(k1=-0.08, k2=0.01, white_balance=(1.0, 0.85, 0.65)))
+    frame = renderer.render([Cover(COLORS[r.color], r.radius, *p) for r, p in zip(ROBOTS, POSES)])
+    with ros_context() as (context, executor):
+        node = CameraTrackerNode(context=context, parameter_overrides=[
+            Parameter('calibration_file', value=str(tmp_path / 'cal.yaml'))])
+        probe = rclpy.create_node('probe', context=context)
+        executor.add_node(node)
+        executor.add_node(probe)
+        poses, diags = {}, []
+        _listen(probe, poses, diags)
+        pub = probe.create_publisher(Image, '/image', QoSProfile(**IMAGE_QOS))
+        msg = image_to_msg(frame, probe.get_clock().now().to_msg())
+
+        def step() -> bool:
+            pub.publish(msg)
+            return len(poses) == len(ROBOTS)
+        try:
+            assert spin_until(executor, step, 20.0), f'poses of {sorted(poses)}'
+            _check(poses)
+        finally:
+            node.close()
+            node.destroy_node()
+            probe.destroy_node()
+
+
+def test_a_calibration_without_a_fleet_colour_is_refused_naming_the_file(tmp_path):
+    renderer = CameraRenderer()
+    cal = calibrate(renderer.render([]))
+    cal.white_balance, cal.cover_colors = (1.0, 1.0, 1.0), {'red': (200, 30, 30)}
+    cal.save(tmp_path / 'cal.yaml')
+    assert Calibration.load(tmp_path / 'cal.yaml').cover_colors == {'red': (200, 30, 30)}
+    with ros_context() as (context, _):
+        with pytest.raises(TrackerError, match=r'cal\.yaml: .*camera_calibrate --colors'):
+            CameraTrackerNode(context=context, parameter_overrides=[
+                Parameter('calibration_file', value=str(tmp_path / 'cal.yaml'))])
 
 
 def test_a_video_file_is_read_and_a_missing_camera_retried(tmp_path):

@@ -19,8 +19,9 @@ Three steps, in this order, each updating one calibration YAML (``--out``), the
    (-1.08, 1.08), the 2 x 2 m arena of thesis 5.2 plus a margin), upright (top edge toward
    +y), at the height of the robots' covers. The homography is fitted to the 16 marker
    corners, undistorted first by the file's lens; the file's lens and colours are kept.
-3. ``--colors``: every robot at its start pose (the fleet file's x, y, yaw, or
-   ``--poses``), the arena lit as for the runs. Measures the white balance on the white
+3. ``--colors``: every robot at its start pose (``--poses``; by default those of
+   scripts/hil_demo.py, config/hil.yaml's ``initial_poses``, else the fleet file's x, y,
+   yaw), the arena lit as for the runs. Measures the white balance on the white
    cover plates and each cover colour (swarm_bridge.camera_colors).
 
 ``--sim`` uses the synthetic camera (camera_render) instead of ``--source``, with
@@ -75,7 +76,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help='frames between checkerboard views from a device or video')
     p.add_argument('--fleet', default=None, help='fleet YAML (colours, radii, start poses)')
     p.add_argument('--poses', type=float, nargs='+', default=None,
-                   help='x y yaw_deg per robot in fleet order (default: the fleet file)')
+                   help='x y yaw_deg per robot in fleet order (default: the start poses '
+                        'of config/hil.yaml, else of the fleet file)')
     p.add_argument('--tries', type=int, default=300,
                    help='frames to read from a device/video at most')
     p.add_argument('--save-image', default=None, help='also write the (last) frame used (PNG)')
@@ -264,6 +266,17 @@ def _doc(path: str) -> dict:
     return doc if isinstance(doc, dict) else {}
 
 
+def demo_start_poses() -> list[float]:
+    """The start poses of scripts/hil_demo.py: config/hil.yaml's ``initial_poses`` (x, y,
+    yaw_deg per robot; ``[0.0]``, the fleet file's, when it has none)."""
+    from swarm_common.paths import package_file
+    try:
+        doc = yaml.safe_load(package_file('swarm_bridge', 'config/hil.yaml').read_text())
+        return [float(v) for v in doc['hil_world']['ros__parameters']['initial_poses']]
+    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError):
+        return [0.0]
+
+
 def run_colors(args: argparse.Namespace) -> str:
     from swarm_bridge.camera_colors import measure_cover_colors
     from swarm_common.fleet import FleetError, initial_poses, load_fleet
@@ -273,7 +286,7 @@ def run_colors(args: argparse.Namespace) -> str:
     cal = Calibration.load(args.out)
     try:
         robots = load_fleet(args.fleet)
-        poses = initial_poses(args.poses or [0.0], robots)
+        poses = initial_poses(args.poses or demo_start_poses(), robots)
     except (FleetError, OSError) as exc:
         raise CalibrationError(str(exc)) from None
     if args.sim:

@@ -61,6 +61,9 @@ PARAMETERS = {
     'gate_m': (DEFAULTS.gate_m, 'Identity gate beyond max_speed times the elapsed time, m'),
     'initial_poses': ([0.0], 'x,y,yaw_deg per robot in fleet order: where robots of one '
                              'colour start (empty: the first frame decides)'),
+    'image_reliable': (False, 'Subscribe to the image topic reliably (a publisher that is '
+                              'reliable, as hil_world_node; a best-effort camera driver '
+                              'then cannot connect)'),
     'publish_annotated': (True, 'Publish camera/annotated'),
     'status_period': (1.0, 'Seconds between diagnostics messages'),
 }
@@ -116,7 +119,9 @@ class CameraTrackerNode(Node):
             self.create_timer(1.0 / float(p['frame_rate']), self._on_capture_timer)
             self.create_timer(float(p['reopen_period']), self._reopen)
         else:
-            self.create_subscription(Image, 'image', self._on_image, QoSProfile(**IMAGE_QOS))
+            image_qos = dict(IMAGE_QOS, reliability=qos.RELIABLE if p['image_reliable']
+                             else qos.BEST_EFFORT)
+            self.create_subscription(Image, 'image', self._on_image, QoSProfile(**image_qos))
         self.create_timer(float(p['status_period']), self._publish_diagnostics)
         self.get_logger().info(
             f'tracking {len(robots)} robots from '

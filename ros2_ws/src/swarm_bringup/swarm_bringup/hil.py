@@ -233,6 +233,8 @@ def camera_tracker_node(calibration: str, poses: list[tuple[float, float, float]
                                        for v in (x, y, math.degrees(yaw))]}
     if source is not None:
         tracker['source'] = source
+    else:   # hil_world_node's images are reliable: none lost to the transport under load
+        tracker['image_reliable'] = True
     return NodeSpec('swarm_bridge', 'camera_tracker_node', 'camera_tracker',
                     parameters=tracker, params_files=(str(bridge_config('camera.yaml')),),
                     remappings=(('image', '/camera/image_raw'),))
