@@ -154,9 +154,13 @@ def _check_radio_obstacle_and_markers(executor, sim, probe):
     # The RViz view follows: the moved obstacle, the links, the mode agent 2 reports.
     state_pub.publish(AgentState(id=2, mode=AgentState.MODE_LOST))
     assert _until(executor, lambda: sim._modes.get(2) == AgentState.MODE_LOST)
-    views.clear()
-    assert _until(executor, lambda: len(views) > 0)
-    latest = {(m.ns, m.id): m for m in views[-1].markers}
+    # A view drawn after the mode arrived (one drawn before may still be in flight).
+    def drawn_after(t: float) -> list:
+        return [v for v in views if _seconds(v.markers[0]) > t + 1e-6]
+
+    t_mode = sim.world.t
+    assert _until(executor, lambda: len(drawn_after(t_mode)) > 0)
+    latest = {(m.ns, m.id): m for m in drawn_after(t_mode)[-1].markers}
     outline = latest[('obstacles', 0)]
     assert min(p.y for p in outline.points) == pytest.approx(9.0)
     assert len(latest[('links', 0)].points) == 2 * 3          # every pair, no wall
@@ -168,9 +172,9 @@ def _check_radio_obstacle_and_markers(executor, sim, probe):
     assert _until(executor, lambda: kill.get_subscription_count() > 0)
     kill.publish(Int32MultiArray(data=[0]))
     assert _until(executor, lambda: not sim.world.alive[0])
-    views.clear()
-    assert _until(executor, lambda: len(views) > 0)
-    lines = {(m.ns, m.id): m for m in views[-1].markers}[('links', 0)]
+    t_kill = sim.world.t
+    assert _until(executor, lambda: len(drawn_after(t_kill)) > 0)
+    lines = {(m.ns, m.id): m for m in drawn_after(t_kill)[-1].markers}[('links', 0)]
     assert sorted(round(p.x) for p in lines.points) == [6, 12]
 
 
