@@ -14,8 +14,8 @@ from swarm_agent.brain import BrainConfig
 from swarm_agent.dsdv import DsdvConfig
 from swarm_agent.forces import ForceParams
 from swarm_agent.localization import LocalizationConfig
-from swarm_agent.parameters import configured, ParameterError, set_live, spec_table, specs
 from swarm_agent.setpoint import SetpointParams
+from swarm_common.parameters import configured, ParameterError, set_live, spec_table, specs
 
 NESTED = {'localization': LocalizationConfig, 'dsdv': DsdvConfig,
           'setpoint': SetpointParams, 'forces': ForceParams}

@@ -9,7 +9,7 @@ import dataclasses
 
 import pytest
 
-from swarm_agent.parameters import ParameterError
+from swarm_common.parameters import ParameterError
 from swarm_sim.medium import MediumConfig, RUNTIME_SETTINGS
 from swarm_sim.sim_parameters import check_parameters, SIM_PARAMETERS, SimParameters
 

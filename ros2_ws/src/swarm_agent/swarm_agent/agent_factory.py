@@ -15,7 +15,7 @@ import numpy as np
 from swarm_agent.brain import AgentBrain, BrainConfig, BrainConfigError
 from swarm_agent.localization import LocalizationConfig
 from swarm_agent.lqr import design_lqr
-from swarm_agent.parameters import configured
+from swarm_common.parameters import configured
 from swarm_common.robot_types import (
     GRAVITY,
     load_lqr_design,
@@ -40,7 +40,7 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
     to stand at, and ``initial_position_std`` (m per axis) its stated uncertainty (the
     placement error, ``swarm_common.fleet.place_fleet``); None keeps the localization
     config's. The estimate becomes the robot's own with its first GPS or trilateration fix.
-    ``settings`` are generated parameters (``swarm_agent.parameters``, dotted names) set
+    ``settings`` are generated parameters (``swarm_common.parameters``, dotted names) set
     on the brain's configuration last; ParameterError names a bad one.
     """
     types = load_robot_types(robot_types_file)

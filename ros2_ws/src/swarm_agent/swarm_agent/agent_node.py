@@ -83,9 +83,9 @@ from swarm_agent.conversions import (
     yaw_of,
 )
 from swarm_agent.packet import Packet
-from swarm_agent.parameters import ParameterError, set_live, spec_table
 from swarm_common import qos
 from swarm_common.conversions import goals_from_msg, shape_from_msg
+from swarm_common.parameters import ParameterError, set_live, spec_table
 from swarm_common.ros_parameters import declare
 from swarm_common.ros_support import lean_publisher, lean_subscription, run_node
 from swarm_common.shapes import ShapeError
@@ -131,7 +131,7 @@ PARAMETERS = {
 
 
 # The brain's tunables, generated from its configuration dataclasses (one source of
-# truth, swarm_agent.parameters): ``hold_radius``, ``localization.gate``, ...
+# truth, swarm_common.parameters): ``hold_radius``, ``localization.gate``, ...
 BRAIN_PARAMETERS = spec_table(BrainConfig)
 
 

@@ -56,9 +56,9 @@ from swarm_agent.mesh_messages import (
     NeighbourInfo,
 )
 from swarm_agent.packet import Kind, Packet
-from swarm_agent.parameters import tunable
 from swarm_agent.setpoint import avoid_collisions, SetpointParams, velocity_setpoint
 from swarm_common.goals import Goal
+from swarm_common.parameters import tunable
 from swarm_common.robot_types import load_robot_types, RobotType
 from swarm_common.shapes import Shape
 from swarm_mission.contour import sample_boundary

@@ -52,8 +52,8 @@ import zlib
 
 from swarm_agent import wire
 from swarm_agent.packet import BROADCAST, Kind, Packet
-from swarm_agent.parameters import tunable
 from swarm_agent.wire import Advert, INFINITE_HOPS, WireError
+from swarm_common.parameters import tunable
 
 LOG = logging.getLogger(__name__)
 _KINDS = {int(k): k for k in Kind}

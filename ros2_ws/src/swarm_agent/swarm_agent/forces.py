@@ -45,7 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from swarm_agent.parameters import tunable
+from swarm_common.parameters import tunable
 
 
 @dataclass

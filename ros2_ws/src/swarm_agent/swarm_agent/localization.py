@@ -28,8 +28,8 @@ import numpy as np
 from scipy.special import chdtri
 
 from swarm_agent.kalman import KalmanFilter
-from swarm_agent.parameters import tunable
 from swarm_agent.trilateration import DegenerateGeometryError, trilaterate
+from swarm_common.parameters import tunable
 
 LOG = logging.getLogger(__name__)
 MG = 9.80665e-3  # m/s^2 per milli-g

@@ -344,8 +344,8 @@ def supervise(args: argparse.Namespace, run: SwarmRun, children: Children, shape
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
 
-    from swarm_bringup.results import RunSummary, write_results
     from swarm_bringup.monitor_node import MonitorNode
+    from swarm_bringup.results import RunSummary, write_results
 
     ids = [r.id for r in sorted(fleet, key=lambda r: r.id)]
     # rclpy's own SIGINT handler would shut the monitor's context down, and a run whose

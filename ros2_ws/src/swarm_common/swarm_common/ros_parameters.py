@@ -1,6 +1,6 @@
 """ROS side of the parameters generated from configuration dataclasses.
 
-The specs come from ``swarm_agent.parameters`` (``tunable`` dataclass fields: the brain's
+The specs come from ``swarm_common.parameters`` (``tunable`` dataclass fields: the brain's
 configs, sim_node's ``SimParameters`` and the radio medium's ``MediumConfig``); this
 module turns one into the ``ParameterDescriptor`` a node declares (description, an
 ``IntegerRange`` or ``FloatingPointRange`` when both bounds are given, read-only unless

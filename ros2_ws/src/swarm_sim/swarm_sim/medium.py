@@ -26,7 +26,7 @@ import shapely
 from shapely.geometry import box, Polygon
 
 from swarm_agent.packet import BROADCAST, Packet
-from swarm_agent.parameters import tunable
+from swarm_common.parameters import tunable
 
 FRAME_OVERHEAD_BYTES = 18  # XBee API frame + 802.15.4 header around the payload
 WALL_THICKNESS_M = 1.0

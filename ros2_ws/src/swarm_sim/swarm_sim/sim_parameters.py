@@ -2,7 +2,7 @@
 build.
 
 ``SimParameters`` holds every parameter of the simulator, each a ``tunable`` field
-(swarm_agent.parameters: description, range, whether it may change while the world
+(swarm_common.parameters: description, range, whether it may change while the world
 runs), with the radio medium's own configuration nested (``medium.latency_s``,
 ``medium.bandwidth_bps``, ... generated from ``swarm_sim.medium.MediumConfig``). sim_node
 declares one ROS parameter per spec of ``SIM_PARAMETERS`` (read-only but for the live
@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from swarm_agent.parameters import configured, spec_table, tunable
 from swarm_common.fleet import load_fleet, place_fleet, PLACEMENT_STD_M, RobotSpec
+from swarm_common.parameters import configured, spec_table, tunable
 from swarm_common.robot_types import load_robot_types, RobotType
 from swarm_common.shapes import load_shape
 from swarm_sim.medium import MediumConfig, RadioMedium
