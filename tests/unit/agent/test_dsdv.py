@@ -22,7 +22,7 @@ from scipy.sparse.csgraph import shortest_path
 
 from swarm_agent import wire
 from swarm_agent.dsdv import Delivered, DsdvConfig
-from swarm_agent.packet import Kind, MAX_PAYLOAD
+from swarm_agent.packet import Kind, MAX_BODY
 from swarm_agent.sim_net import SimulatedNet as Net
 from swarm_agent.wire import INFINITE_HOPS
 
@@ -321,12 +321,12 @@ def test_broadcast_flood_delivered_once_everywhere():
 
 @pytest.mark.parametrize('size', [wire.MAX_WHOLE, wire.MAX_WHOLE + 1, 1000])
 def test_fragmented_unicast_and_flood_reassembled(size):
-    """Payloads over one 100-byte XBee frame go as fragments and arrive whole."""
+    """Payloads over one frame body go as fragments and arrive whole."""
     payload = bytes(np.random.default_rng(size).integers(0, 256, size, dtype=np.uint8))
     net = _chain(4)
     out = net.routers[0].send(10.0, 3, payload)
     frames = 1 if size <= wire.MAX_WHOLE else -(-size // wire.MAX_CHUNK)
-    assert len(out) == frames and all(len(p.payload) <= MAX_PAYLOAD for p in out)
+    assert len(out) == frames and all(len(p.payload) <= MAX_BODY for p in out)
     net.transmit(10.0, 0, out)
     assert [d.payload for d in net.delivered[3] if d.kind == Kind.DATA] == [payload]
     net.transmit(11.0, 0, net.routers[0].broadcast(11.0, payload))
@@ -339,7 +339,7 @@ def test_fragments_out_of_order_and_incomplete():
     net = _chain(2)
     payload = bytes(range(250))
     out = net.routers[0].send(10.0, 1, payload)
-    assert len(out) == 3
+    assert len(out) == -(-250 // wire.MAX_CHUNK) == 4   # 74 bytes of message a fragment
     net.transmit(10.0, 0, out[::-1])
     assert net.delivered[1][-1].payload == payload
     count = len(net.delivered[1])

@@ -22,25 +22,28 @@ def test_cost_row_quantises_to_centimetres_and_keeps_unreachable():
     assert back == row
     np.testing.assert_allclose(back.costs[:3], [0.0, 1.23, 57.89], atol=1e-9)
     assert np.isinf(back.costs[3])
-    # 20 goals of one type (the thesis swarm) fit in one 100-byte frame.
-    assert len(CostRow.from_costs(1, 1, 1, 1, np.ones(20)).encode()) <= 100
+    # 20 goals of one type (the thesis swarm) fit in one frame.
+    assert len(CostRow.from_costs(1, 1, 1, 1, np.ones(20)).encode()) <= wire.MAX_WHOLE
 
 
-def test_forty_goal_rows_fit_one_frame_and_long_paths_stay_exact():
-    """A 100-robot thesis swarm has 40 goals of types 1 and 2: with 16-bit centimetre
-    costs (up to 655.34 m) the row is one flood frame, not two fragments. A longer path
-    switches the row to 32-bit costs, still exact to the centimetre."""
+def test_narrow_rows_save_fragments_and_long_paths_stay_exact():
+    """With 16-bit centimetre costs (up to 655.34 m) a row of 32 goals is one flood frame
+    (14 + 64 bytes: the 78 of ``wire.MAX_WHOLE``) and the 40 goals of types 1 and 2 of a
+    100-robot thesis swarm take two fragments, not three. A longer path switches the row
+    to 32-bit costs, still exact to the centimetre."""
+    assert len(wire.split_message(CostRow.from_costs(3, 1, 2, 9, np.ones(32)).encode(),
+                                  0)) == 1
     short = np.linspace(0.0, 655.34, 40)
     short[7] = np.inf
     row = CostRow.from_costs(3, 1, 2, 9, short)
-    assert len(wire.split_message(row.encode(), 0)) == 1
+    assert len(wire.split_message(row.encode(), 0)) == 2
     assert CostRow.decode(row.encode()) == row
     long = short.copy()
     long[0] = 655.35          # 65535 cm: no longer a 16-bit cost
     wide = CostRow.from_costs(3, 1, 2, 9, long)
     back = CostRow.decode(wide.encode())
     assert back == wide and back.quantised[0] == 65535 and np.isinf(back.costs[7])
-    assert len(wire.split_message(wide.encode(), 0)) == 2
+    assert len(wire.split_message(wide.encode(), 0)) == 3
 
 
 @pytest.mark.parametrize('bad', [b'', b'\x01', b'\x02' + bytes(5), bytes(24)])

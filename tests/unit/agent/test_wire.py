@@ -1,6 +1,7 @@
 """The DSDV wire format (swarm_agent.wire) and how the router treats bad frames.
 
-Every frame fits one 100-byte XBee payload. Decoders either return what was encoded
+Every frame body fits the 83 bytes the authentication trailer (17 bytes) leaves of one
+100-byte XBee payload. Decoders either return what was encoded
 or raise ``WireError``; ``DsdvRouter.on_packet`` counts malformed, unknown-kind and
 TTL-0 frames in ``stats`` and drops them, never raising into the agent loop.
 """
@@ -13,30 +14,31 @@ import pytest
 
 from swarm_agent import wire
 from swarm_agent.dsdv import DsdvRouter
-from swarm_agent.packet import BROADCAST, Kind, MAX_PAYLOAD, Packet
+from swarm_agent.packet import AUTH_TRAILER, BROADCAST, Kind, MAX_BODY, MAX_PAYLOAD, Packet
 from swarm_agent.wire import Advert, INFINITE_HOPS, WireError
 
 FUZZ = settings(max_examples=200, deadline=None)
 
 
 def test_frame_size_constants_fit_one_xbee_frame():
-    # u32 + u8 header, 7-byte entries: 13 entries are 96 bytes, 14 would be 103
-    assert wire.ADV_PER_FRAME == 13
-    assert 5 + 13 * 7 <= MAX_PAYLOAD < 5 + 14 * 7
-    assert wire.MAX_WHOLE == MAX_PAYLOAD - 4 - 1
-    assert wire.MAX_CHUNK == MAX_PAYLOAD - 4 - 5
+    # 83-byte body: u32 + u8 header, 7-byte entries: 11 entries are 82 bytes, 12 would be 89
+    assert MAX_BODY + AUTH_TRAILER == MAX_PAYLOAD == 100
+    assert wire.ADV_PER_FRAME == 11
+    assert 5 + 11 * 7 <= MAX_BODY < 5 + 12 * 7
+    assert wire.MAX_WHOLE == MAX_BODY - 4 - 1
+    assert wire.MAX_CHUNK == MAX_BODY - 4 - 5
 
 
-@given(st.integers(0, 2 ** 32 - 1), st.binary(max_size=96))
+@given(st.integers(0, 2 ** 32 - 1), st.binary(max_size=MAX_BODY - 4))
 def test_heartbeat_round_trip(seq, info):
     data = wire.encode_heartbeat(seq, info)
-    assert len(data) <= MAX_PAYLOAD
+    assert len(data) <= MAX_BODY
     assert wire.decode_heartbeat(data) == (seq, info)
 
 
 def test_heartbeat_info_too_long_rejected():
     with pytest.raises(WireError, match='exceeds one frame'):
-        wire.encode_heartbeat(0, bytes(97))
+        wire.encode_heartbeat(0, bytes(MAX_BODY - 3))
 
 
 adverts = st.lists(st.builds(Advert, st.integers(0, 0xFFFF), st.integers(0, INFINITE_HOPS),
@@ -49,7 +51,7 @@ def test_adverts_round_trip_over_several_frames(seq, advs):
     assert len(frames) == max(1, -(-len(advs) // wire.ADV_PER_FRAME))
     decoded = []
     for frame in frames:
-        assert len(frame) <= MAX_PAYLOAD
+        assert len(frame) <= MAX_BODY
         s, part = wire.decode_adverts(frame)
         assert s == seq
         decoded.extend(part)
@@ -70,7 +72,7 @@ def test_routed_round_trip(origin, second, chunk):
 @given(st.binary(max_size=3000), st.integers(0, 0xFFFF))
 def test_split_and_parse_round_trip(message, frag_id):
     chunks = wire.split_message(message, frag_id)
-    assert all(len(wire.encode_routed(1, 2, c)) <= MAX_PAYLOAD for c in chunks)
+    assert all(len(wire.encode_routed(1, 2, c)) <= MAX_BODY for c in chunks)
     parsed = [wire.parse_chunk(c) for c in chunks]
     if len(message) <= wire.MAX_WHOLE:
         assert parsed == [(message, None)]

@@ -13,9 +13,11 @@ from typing import Any
 import numpy as np
 
 from swarm_agent.brain import AgentBrain, BrainConfig, BrainConfigError
+from swarm_agent.frame_auth import FrameAuth, Keyring, load_keyring
 from swarm_agent.localization import LocalizationConfig
 from swarm_agent.lqr import design_lqr
 from swarm_common.parameters import configured
+from swarm_common.paths import package_file
 from swarm_common.robot_types import (
     GRAVITY,
     load_lqr_design,
@@ -23,6 +25,18 @@ from swarm_common.robot_types import (
     parse_type_counts,
     robot_type,
 )
+
+# The development key shipped in config/: published, so it authenticates nothing against
+# an attacker who has this repository; deployments pass their own (docs/security.md).
+DEFAULT_KEY_FILE = package_file('swarm_agent', 'config/swarm_keys.yaml')
+
+
+def swarm_keyring(swarm_key_file: str | None = None) -> Keyring:
+    """The keyring of ``swarm_key_file`` (default: the development key).
+
+    Raises ``frame_auth.FrameAuthError`` with one line naming the file and the fix.
+    """
+    return load_keyring(str(swarm_key_file or DEFAULT_KEY_FILE))
 
 
 def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
@@ -33,7 +47,8 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
                robot_types_file: str | None = None, external_pose: bool = False,
                localization: LocalizationConfig | None = None,
                initial_position_std: float | None = None,
-               settings: Mapping[str, Any] | None = None) -> AgentBrain:
+               settings: Mapping[str, Any] | None = None,
+               keyring: Keyring | None = None, auth: bool = True) -> AgentBrain:
     """An AgentBrain for one robot, with the LQR gains of its type (eqs. 3.108-3.111).
 
     ``initial_position`` is the robot's deployment prior, the position it was configured
@@ -42,6 +57,8 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
     config's. The estimate becomes the robot's own with its first GPS or trilateration fix.
     ``settings`` are generated parameters (``swarm_common.parameters``, dotted names) set
     on the brain's configuration last; ParameterError names a bad one.
+    Radio frames are authenticated under ``keyring`` (default: ``swarm_keyring()``, the
+    development key); ``auth=False`` turns that off, for the with/without comparison.
     """
     types = load_robot_types(robot_types_file)
     robot = robot_type(types, agent_type)
@@ -65,8 +82,9 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
     # eq. 3.111's u_max shapes the LQR weights of the linear model; the actuator must
     # also overcome Coulomb friction (mu_1 m g is 3.1 N for type 3, above u_max alone).
     u_limit = design.u_max + 2.0 * robot.dry_friction * robot.mass * GRAVITY
+    frame_auth = FrameAuth(keyring or swarm_keyring()) if auth else None
     return AgentBrain(config, robot, gains, initial_position,
-                      np.random.default_rng(seed), u_max=u_limit)
+                      np.random.default_rng(seed), u_max=u_limit, auth=frame_auth)
 
 
 def type_counts_from(spec: str | dict[int, int]) -> dict[int, int]:

@@ -25,6 +25,10 @@ It combines the algorithms of thesis chapter 3 exactly as an agent runs them:
   proximity sensor while they are fresh, and on their broadcast estimates otherwise.
   A parked robot that a neighbour comes too close to yields, then returns to its goal.
 
+Radio frames are authenticated (``swarm_agent.frame_auth``) when the brain is given a
+``FrameAuth``: every frame it sends is sealed, every frame it hears is opened first and
+dropped, counted by kind in ``auth_stats``, when it fails.
+
 Inputs: ``on_imu``, ``on_gps``, ``on_ranges``, ``on_proximity``, ``on_packet``,
 ``set_shape``, ``set_goals``. Output: ``step(t)`` returns the packets to send and the
 force command; ``snapshot()`` the estimate, mode and assignment for introspection.
@@ -45,6 +49,7 @@ from swarm_agent.assignment import assign
 from swarm_agent.costs import class_costs, VisibilityGraph
 from swarm_agent.dsdv import DsdvConfig, DsdvRouter
 from swarm_agent.forces import ForceParams, formation_force
+from swarm_agent.frame_auth import FrameAuth
 from swarm_agent.free_space import grow_obstacles
 from swarm_agent.localization import LocalizationConfig, Localizer, Mode
 from swarm_agent.lqr import LqrGains, VelocityLoop
@@ -184,8 +189,11 @@ class AgentBrain:
 
     def __init__(self, config: BrainConfig, robot: RobotType, gains: LqrGains,
                  initial_position: Sequence[float], rng: np.random.Generator,
-                 u_max: float | None = None) -> None:
+                 u_max: float | None = None, auth: FrameAuth | None = None) -> None:
+        """``auth`` seals and opens the radio frames; None: unauthenticated (only for
+        comparisons and tests: ``agent_factory.make_brain`` gives every brain one)."""
         self.config = config
+        self.auth = auth
         self.robot = robot
         self.rng = rng
         self.router = DsdvRouter(config.agent_id, config.dsdv)
@@ -296,7 +304,12 @@ class AgentBrain:
         self._avoid_due = True
 
     def on_packet(self, t: float, packet: Packet) -> None:
-        """A packet heard on the radio: route it, and consume what is for this agent."""
+        """A packet heard on the radio: authenticate it, route it, and consume what is
+        for this agent."""
+        if self.auth is not None:
+            packet = self.auth.open(packet)
+            if packet is None:
+                return
         out = self.router.on_packet(t, packet)
         if not (out.packets or out.delivered):
             return
@@ -349,6 +362,9 @@ class AgentBrain:
             if dt > 0.0:
                 self._force = self.loop.step(dt, self._command, self.localizer.velocity)
         packets, self._outbox = self._outbox, []
+        if self.auth is not None and packets:
+            seal = self.auth.seal
+            packets = [seal(p) for p in packets]
         # No copies (they were 2 % of the headless evaluator): both arrays are replaced,
         # never written in place, so the caller may keep them.
         return BrainOutput(packets, self._force, self._command)
@@ -373,7 +389,12 @@ class AgentBrain:
                 f'fixes {loc.stats}; neighbours {len(self.neighbours)}, beacons heard '
                 f'{beacons}, ranges {len(self._ranges)}; goal {self.goal_id} '
                 f'(v{self.goal_version}, {self.rows_used} rows); mesh {self.stats}; '
-                f'router {self.router.stats}')
+                f'router {self.router.stats}; rejected frames {self.auth_stats}')
+
+    @property
+    def auth_stats(self) -> dict[str, int]:
+        """Frames dropped by the authentication, by kind (``frame_auth.REJECTIONS``)."""
+        return dict(self.auth.stats) if self.auth is not None else {}
 
     @property
     def settled(self) -> bool:

@@ -184,7 +184,8 @@ class DsdvRouter:
                       self.config.default_ttl if ttl is None else ttl, payload)
 
     def set_heartbeat_info(self, info: bytes | Callable[[], bytes]) -> None:
-        """Small application blob carried by every heartbeat (at most 96 bytes).
+        """Small application blob carried by every heartbeat (at most 79 bytes: the
+        frame body ``packet.MAX_BODY`` less the sequence number).
 
         A callable is asked for the blob only when a heartbeat goes out.
         """

@@ -2,7 +2,8 @@
 
 The router (``swarm_agent.dsdv``) carries opaque bytes; this module defines what the
 agents put in them, in a compact fixed binary layout so that one message fits one
-100-byte XBee payload:
+100-byte XBee payload (its 83-byte body, ``wire.MAX_WHOLE`` = 78 bytes of message, before
+the authentication trailer of ``swarm_agent.frame_auth``):
 
 - ``NeighbourInfo``: carried in every DSDV heartbeat: type, beacon flag, mode and the
   sender's estimated position and velocity. Beacons' positions in it are what the
@@ -12,9 +13,10 @@ agents put in them, in a compact fixed binary layout so that one message fits on
   (thesis 3.2.2.2), flooded to the whole mesh. Costs are quantised to centimetres:
   the quantised numbers are the ones every agent feeds to the Hungarian algorithm,
   so agents holding the same rows compute bit-identical matrices. A row whose costs
-  are all below 655.35 m goes out with 16-bit costs, so 40 goals (the larger types of
-  a 100-robot thesis swarm) fit one frame instead of two; a longer one with 32-bit
-  costs, flagged by the top bit of the goal count. Both decode to the same row.
+  are all below 655.35 m goes out with 16-bit costs, so 32 goals fit one frame (40, the
+  larger types of a 100-robot thesis swarm, take two fragments instead of three); a
+  longer one with 32-bit costs, flagged by the top bit of the goal count. Both decode
+  to the same row.
 
 Every decoder raises ``MeshMessageError`` (a ValueError) on malformed bytes.
 """

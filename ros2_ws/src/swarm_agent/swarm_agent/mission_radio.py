@@ -7,7 +7,9 @@ around it. Through their full dumps it learns a route to every agent its mesh co
 holds; when an agent falls silent, its neighbours time it out and advertise the broken
 route (Fig. 3.9), which reaches the mission the same way. ``alive`` names the agents
 the mission holds a finite route to now: those it hears of, hop by hop. It sends
-nothing, so the agents' routing and consensus do not change.
+nothing, so the agents' routing and consensus do not change. Like every node of the mesh
+it opens each frame first (``swarm_agent.frame_auth``) and drops, counted in
+``auth.stats``, what fails.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 from swarm_agent.dsdv import DsdvConfig, DsdvRouter, INFINITE_HOPS
+from swarm_agent.frame_auth import FrameAuth
 from swarm_agent.packet import Kind, Packet
 
 MISSION_RADIO_ID = 0xFFFE   # below BROADCAST (0xFFFF); no agent may use it
@@ -25,7 +28,9 @@ class MeshListener:
     """The mission's radio; see the module docstring."""
 
     def __init__(self, agent_ids: Iterable[int], node_id: int = MISSION_RADIO_ID,
-                 config: DsdvConfig | None = None) -> None:
+                 config: DsdvConfig | None = None, auth: FrameAuth | None = None) -> None:
+        """``auth`` opens the frames heard; None: unauthenticated (comparisons)."""
+        self.auth = auth
         self.agents = {int(a) for a in agent_ids}
         if node_id in self.agents:
             raise ValueError(f"agent id {node_id} is the mission's radio address; give the "
@@ -40,6 +45,10 @@ class MeshListener:
     def on_packet(self, t: float, packet: Packet) -> None:
         """A frame the mission's radio heard; only route adverts concern it."""
         if packet.kind in ADVERT_KINDS:
+            if self.auth is not None:
+                packet = self.auth.open(packet)
+                if packet is None:
+                    return
             self.frames += 1
             self.router.on_packet(t, packet)
 

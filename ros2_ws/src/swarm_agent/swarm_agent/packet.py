@@ -18,6 +18,10 @@ import struct
 
 BROADCAST = 0xFFFF
 MAX_PAYLOAD = 100  # bytes: one XBee frame
+# Every frame's payload ends with the authentication trailer (key id, counter, tag:
+# swarm_agent.frame_auth); what the mesh puts before it is at most MAX_BODY bytes.
+AUTH_TRAILER = 17
+MAX_BODY = MAX_PAYLOAD - AUTH_TRAILER
 _FRAME = struct.Struct('<HHBHBdB')
 
 

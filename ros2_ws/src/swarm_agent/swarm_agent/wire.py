@@ -1,11 +1,13 @@
-"""Compact binary wire format of the DSDV mesh (thesis 3.1.2); every frame <= 100 bytes.
+"""Compact binary wire format of the DSDV mesh (thesis 3.1.2); every frame body <= 83 bytes.
 
 Little-endian layouts (the packet header itself travels in swarm_msgs/RadioPacket or
-the XBee frame around it):
+the XBee frame around it). Each body below is at most ``MAX_BODY`` (83) bytes: the
+authentication trailer (``swarm_agent.frame_auth``, 17 bytes) fills a frame to the
+100-byte XBee payload:
 
 - HEARTBEAT: ``u32 own_sequence`` + application info blob (the sender's NeighbourInfo).
 - DSDV_FULL / DSDV_INCREMENTAL: ``u32 sender_sequence, u8 count`` + count x
-  ``(u16 destination, u8 hops, u32 destination_sequence)``; 13 entries per frame.
+  ``(u16 destination, u8 hops, u32 destination_sequence)``; 11 entries per frame.
 - DATA (routed unicast): ``u16 origin, u16 final_destination`` + app chunk.
 - FLOOD (mesh-wide broadcast): ``u16 origin, u16 flood_id`` + app chunk.
 - app chunk: ``u8 0`` + whole message, or ``u8 1, u16 fragment_id, u8 index, u8 count`` +
@@ -21,7 +23,7 @@ from dataclasses import dataclass
 import functools
 import struct
 
-from swarm_agent.packet import MAX_PAYLOAD
+from swarm_agent.packet import MAX_BODY
 
 INFINITE_HOPS = 255
 _HB = struct.Struct('<I')
@@ -29,11 +31,11 @@ _ADV_HEAD = struct.Struct('<IB')
 _ADV_ENTRY = struct.Struct('<HBI')
 _ROUTED = struct.Struct('<HH')
 _FRAG = struct.Struct('<BHBB')
-ADV_PER_FRAME = (MAX_PAYLOAD - _ADV_HEAD.size) // _ADV_ENTRY.size
+ADV_PER_FRAME = (MAX_BODY - _ADV_HEAD.size) // _ADV_ENTRY.size
 CHUNK_WHOLE = 0
 CHUNK_FRAGMENT = 1
-MAX_CHUNK = MAX_PAYLOAD - _ROUTED.size - _FRAG.size  # app bytes per fragment
-MAX_WHOLE = MAX_PAYLOAD - _ROUTED.size - 1
+MAX_CHUNK = MAX_BODY - _ROUTED.size - _FRAG.size  # app bytes per fragment
+MAX_WHOLE = MAX_BODY - _ROUTED.size - 1
 
 
 class WireError(ValueError):
@@ -50,7 +52,7 @@ class Advert:
 
 
 def encode_heartbeat(sequence: int, info: bytes) -> bytes:
-    if _HB.size + len(info) > MAX_PAYLOAD:
+    if _HB.size + len(info) > MAX_BODY:
         raise WireError(f'heartbeat info of {len(info)} bytes exceeds one frame')
     return _HB.pack(sequence & 0xFFFFFFFF) + info
 

@@ -86,6 +86,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument('--control-rate', type=float,
                         default=DEFAULTS.control_rate,
                         help='inner loop rate in Hz')
+    parser.add_argument('--swarm-key-file', default='',
+                        help='swarm key file of the authenticated radio frames (default: '
+                             'the development key, docs/security.md)')
+    parser.add_argument('--no-auth', dest='auth', action='store_false',
+                        help='unauthenticated radio frames (only to compare with and without)')
     parser.add_argument('--out', required=True, help='results directory')
     return parser.parse_args(argv)
 

@@ -41,6 +41,8 @@ class ScenarioSpec:
     remove: Sequence[str] = field(default_factory=list)   # TIME:ID,ID
     loss: float = 0.0
     control_rate: float = 50.0
+    auth: bool = True                   # authenticated radio frames (--no-auth: off)
+    swarm_key_file: str = ''            # '' : the development key
 
     @classmethod
     def from_namespace(cls, args) -> ScenarioSpec:
@@ -74,7 +76,8 @@ def build_scenario(spec: ScenarioSpec, seed: int) -> Scenario:
                     seed=seed, duration_s=spec.duration, sequence=sequence,
                     removals=removals, medium=MediumConfig(loss=spec.loss),
                     control_dt=1.0 / spec.control_rate, remesh=spec.remesh,
-                    settle_hold_s=spec.settle_hold)
+                    settle_hold_s=spec.settle_hold, auth=spec.auth,
+                    swarm_key_file=spec.swarm_key_file or None)
 
 
 def run_trial(spec: ScenarioSpec, seed: int) -> TrialRecord:

@@ -15,6 +15,12 @@ the brains get the radio deliveries, IMU, ranges, proximity scans and GPS fixes 
 At every truth sample (``record_period_s``) the mission hears which agents are alive
 over its radio, the beliefs are recorded beside the truth, and the run ends once the
 settled condition (eq. 4.1) has held for ``settle_hold_s`` with nothing scheduled.
+
+Radio frames are authenticated as on the robots (``swarm_agent.frame_auth``) under
+``swarm_key_file`` (default: the development key); ``auth=False`` only for the
+with/without comparison. The frames the brains and the mission's radio rejected, by kind,
+are in the metrics (``frames_rejected``). ``rogues`` are transmitters without the key
+(``swarm_sim.rogue``) heard by every robot and the mission.
 """
 
 from __future__ import annotations
@@ -25,8 +31,9 @@ import time as wallclock
 
 import numpy as np
 
-from swarm_agent.agent_factory import make_brain
+from swarm_agent.agent_factory import make_brain, swarm_keyring
 from swarm_agent.brain import AgentBrain
+from swarm_agent.frame_auth import FrameAuth, FrameAuthError
 from swarm_agent.mission_radio import MeshListener
 from swarm_common.fleet import place_fleet, PLACEMENT_STD_M, random_fleet, RobotSpec
 from swarm_common.robot_types import load_robot_types
@@ -82,6 +89,11 @@ class Scenario:
     # Where the mission computer's radio stands (m); None: the first shape's centroid.
     mission_position: tuple[float, float] | None = None
     remesh: str = 'incremental'           # bubble packing on a changed shape (MissionConfig)
+    auth: bool = True                     # authenticated radio frames (frame_auth)
+    swarm_key_file: str | None = None     # None: the development key (config/)
+    # Rogue transmitters (swarm_sim.rogue): ``frames(t)`` at every control step, heard by
+    # every robot and the mission's radio.
+    rogues: Sequence = ()
 
     def validate(self) -> None:
         """Raise ScenarioError with a one-line reason for an impossible setup."""
@@ -93,6 +105,11 @@ class Scenario:
         if not 0 <= self.n_beacons <= n:
             raise ScenarioError(f'{self.n_beacons} beacons requested but the swarm has only '
                                 f'{n} agents; use --beacons between 0 and {n}')
+        if self.auth:
+            try:
+                swarm_keyring(self.swarm_key_file)
+            except FrameAuthError as exc:
+                raise ScenarioError(str(exc)) from None
 
 
 @dataclass
@@ -146,9 +163,12 @@ class HeadlessSwarm:
         # The mission computer is a node of the mesh: it learns which agents are alive
         # from the route adverts its radio hears (swarm_agent.mission_radio).
         try:
-            self.mission_radio = MeshListener(self.ids)
-        except ValueError as exc:
+            keyring = swarm_keyring(scenario.swarm_key_file) if scenario.auth else None
+            self.mission_radio = MeshListener(
+                self.ids, auth=FrameAuth(keyring) if keyring is not None else None)
+        except (ValueError, FrameAuthError) as exc:
             raise ScenarioError(str(exc)) from None
+        self.rejected: dict[str, int] = {}   # frames the removed brains had rejected
         self.medium = MediumWithMission(
             RadioMedium(scenario.medium, self.rng, obstacles), self.mission_radio,
             scenario.mission_position if scenario.mission_position is not None
@@ -169,7 +189,8 @@ class HeadlessSwarm:
                        method=scenario.method, initial_position=(r.x, r.y),
                        seed=scenario.seed * 100_003 + r.id,
                        localization_period_s=scenario.localization_period_s,
-                       initial_position_std=scenario.placement_std_m)
+                       initial_position_std=scenario.placement_std_m,
+                       keyring=keyring, auth=scenario.auth)
             for r in fleet]
         self.mission = Mission(
             MissionConfig(method=scenario.method,
@@ -197,6 +218,7 @@ class HeadlessSwarm:
         for agent in agent_ids:
             i = self.index.get(agent)
             if i is not None and self.world.remove(i):
+                _add_counts(self.rejected, self.brains[i].auth_stats)
                 self.brains[i] = None
                 self.mission.events.append(f't={t:.1f} s: agent {agent} removed')
 
@@ -236,6 +258,8 @@ class HeadlessSwarm:
             world.shape = self.mission.shape
             readings = world.sense(t)
             self._feed(readings)
+            for rogue in sc.rogues:
+                self._hear_rogue(t, rogue.frames(t))
             if readings.truth is not None:
                 self._sample(readings, rec)
                 if progress is not None:
@@ -266,6 +290,25 @@ class HeadlessSwarm:
                 brains[i].on_proximity(t, *readings.proximity.of(i))
         for i, fix, std in readings.gps or ():
             brains[i].on_gps(t, fix, std)
+
+    def _hear_rogue(self, t: float, packets: list) -> None:
+        """A rogue's frames reach every living brain and the mission's radio."""
+        for packet in packets:
+            for brain in self.brains:
+                if brain is not None:
+                    brain.on_packet(t, packet)
+            self.mission_radio.on_packet(t, packet)
+
+    def frames_rejected(self) -> dict[str, int]:
+        """Frames the brains (living and removed) and the mission's radio rejected, by
+        kind (``frame_auth.REJECTIONS``)."""
+        counts = dict(self.rejected)
+        for brain in self.brains:
+            if brain is not None:
+                _add_counts(counts, brain.auth_stats)
+        if self.mission_radio.auth is not None:
+            _add_counts(counts, self.mission_radio.auth.stats)
+        return dict(sorted(counts.items()))
 
     def _sample(self, readings: Readings, rec: dict[str, list]) -> None:
         """A truth sample: liveness for self-repair over the radio, then the record.
@@ -308,9 +351,16 @@ class HeadlessSwarm:
         metrics['wall_seconds'] = wall_s
         metrics['real_time_factor'] = float(arrays['times'][-1] / max(wall_s, 1e-9))
         metrics['medium'] = dict(vars(self.medium.stats))
+        metrics['auth'] = self.scenario.auth
+        metrics['frames_rejected'] = self.frames_rejected()
         if self.mission.last_result is not None:
             metrics['goal_epsilon_t'] = float(self.mission.last_result.epsilon_t)
             metrics['goal_epsilon_g'] = float(self.mission.last_result.epsilon_g)
         return TrialRecord(types=self.robot_types, beacons=self.is_beacon,
                            goals=list(self.mission.goals), shapes=self.shapes,
                            metrics=metrics, events=list(self.mission.events), **arrays)
+
+
+def _add_counts(total: dict[str, int], counts: dict[str, int]) -> None:
+    for key, n in counts.items():
+        total[key] = total.get(key, 0) + n

@@ -1,0 +1,84 @@
+#!/usr/bin/env python3
+"""Cost of authenticated radio frames (swarm_agent.frame_auth): bytes and microseconds.
+
+Seals ``--frames`` frames of the mesh's typical sizes (a heartbeat, a full dump of 11
+adverts, a cost row of 20 goals) and opens each once as a first receiver (the HMAC is
+computed) and again as a further receiver of the same transmission (the per-process
+cache answers; the receiver's own replay window still runs). Prints the trailer's bytes
+per frame, microseconds per seal, per first open and per cached open; with the frame
+counts of an evaluator run (its metrics.json: medium.sent, medium.delivered) the CPU
+time authentication adds to that run, to set beside its measured wall time.
+
+  scripts/env.sh python benchmarks/bench_frame_auth.py --frames 20000
+  scripts/env.sh python benchmarks/bench_frame_auth.py --metrics DIR/metrics.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import time
+
+import numpy as np
+
+from swarm_agent import wire
+from swarm_agent.frame_auth import FrameAuth, Keyring, TRAILER_BYTES
+from swarm_agent.mesh_messages import CostRow, NeighbourInfo
+from swarm_agent.packet import BROADCAST, Kind, Packet
+
+KEY = Keyring(((1, bytes(range(32))),), seal_id=1)
+
+
+def _bodies() -> list[tuple[int, bytes]]:
+    info = NeighbourInfo(1, False, 0, (1.0, 2.0), (0.0, 0.0)).encode()
+    dump = wire.encode_adverts(4, [wire.Advert(k, 2, 8) for k in range(11)])[0]
+    row = wire.encode_routed(3, 9, wire.split_message(
+        CostRow.from_costs(3, 1, 1, 7, np.arange(20.0)).encode(), 1)[0])
+    return [(int(Kind.HEARTBEAT), wire.encode_heartbeat(6, info)),
+            (int(Kind.DSDV_FULL), dump), (int(Kind.FLOOD), row)]
+
+
+def bench(frames: int) -> dict:
+    bodies = _bodies()
+    plain = [Packet(k % 50, BROADCAST, kind, k & 0xFFFF, 1, body)
+             for k, (kind, body) in zip(range(frames), bodies * (frames // len(bodies) + 1))]
+    sender = FrameAuth(KEY)
+    t0 = time.perf_counter()
+    sealed = [sender.seal(p) for p in plain]
+    t1 = time.perf_counter()
+    first, second = FrameAuth(KEY), FrameAuth(KEY)
+    for p in sealed:
+        first.open(p)
+    t2 = time.perf_counter()
+    for p in sealed:
+        second.open(p)
+    t3 = time.perf_counter()
+    assert not first.stats and not second.stats
+    return {'frames': frames, 'trailer_bytes': TRAILER_BYTES,
+            'body_bytes': {Kind(kind).name: len(body) for kind, body in bodies},
+            'seal_us': 1e6 * (t1 - t0) / frames, 'open_first_us': 1e6 * (t2 - t1) / frames,
+            'open_cached_us': 1e6 * (t3 - t2) / frames}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--frames', type=int, default=20000)
+    parser.add_argument('--metrics', default='', help="an evaluator run's metrics.json")
+    args = parser.parse_args(argv)
+    r = bench(args.frames)
+    print(f'trailer {r["trailer_bytes"]} bytes per frame (bodies {r["body_bytes"]}); '
+          f'seal {r["seal_us"]:.2f} us, open {r["open_first_us"]:.2f} us first, '
+          f'{r["open_cached_us"]:.2f} us cached')
+    if args.metrics:
+        trial = json.loads(pathlib.Path(args.metrics).read_text())['trials'][0]
+        sent, delivered = trial['medium']['sent'], trial['medium']['delivered']
+        cpu = 1e-6 * (sent * (r['seal_us'] + r['open_first_us'])
+                      + (delivered - sent) * r['open_cached_us'])
+        print(f'{sent} frames sent, {delivered} deliveries: about {cpu:.1f} s of CPU for '
+              f'authentication, beside {trial["wall_seconds"]:.1f} s wall for the run')
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
