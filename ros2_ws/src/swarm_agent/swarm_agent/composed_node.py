@@ -95,6 +95,19 @@ SHARED = {
 }
 
 
+def _declare_list(node: Node, name: str, type_: Parameter.Type, description: str) -> list:
+    """Declare the read-only list parameter ``name``, the empty list unless given, and
+    return its value. rclpy infers no type from ``[]``, and a parameter declared with a
+    type only has no value: a get_parameters request that names it gets no values at all,
+    which empties ``ros2 param dump`` of the node."""
+    node.declare_parameter(name, type_, ParameterDescriptor(description=description))
+    if node.get_parameter_or(name).value is None:
+        node.set_parameters([Parameter(name, type_, [])])
+    node.set_descriptor(name, ParameterDescriptor(description=description, type=type_.value,
+                                                  read_only=True))
+    return list(node.get_parameter(name).value)
+
+
 def _has_callbacks(node: Node) -> bool:
     """Whether the executor has anything of ``node`` to wait for besides QoS event
     handlers (rclpy gives every node's /parameter_events publisher two, which only log
@@ -115,10 +128,10 @@ class ComposedAgents(Node):
                                    ParameterDescriptor(description=text, read_only=True))
         # The brain's tunables, for every agent of the process; live ones apply to all.
         settings = declare_brain_parameters(self)
-        self.declare_parameter('agent_ids', Parameter.Type.INTEGER_ARRAY, ParameterDescriptor(
-            description='Ids of the fleet to run here (unset: all); the others run elsewhere'))
+        only = _declare_list(self, 'agent_ids', Parameter.Type.INTEGER_ARRAY,
+                             'Ids of the fleet to run here (empty: all); the others run '
+                             'elsewhere') or None
         p = {name: self.get_parameter(name).value for name in SHARED}
-        only = self.get_parameter_or('agent_ids').value
         use_sim_time = self.get_parameter('use_sim_time').value
         robots = _fleet_robots(p['fleet_file'])
         if only is not None:

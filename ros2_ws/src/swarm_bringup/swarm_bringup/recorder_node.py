@@ -60,6 +60,19 @@ def _topic_list(value, name: str) -> list[str]:
     return topics
 
 
+def _declare_list(node: Node, name: str, type_: Parameter.Type, description: str) -> list:
+    """Declare the read-only list parameter ``name``, the empty list unless given, and
+    return its value. rclpy infers no type from ``[]``, and a parameter declared with a
+    type only has no value: a get_parameters request that names it gets no values at all,
+    which empties ``ros2 param dump`` of the node."""
+    node.declare_parameter(name, type_, ParameterDescriptor(description=description))
+    if node.get_parameter_or(name).value is None:
+        node.set_parameters([Parameter(name, type_, [])])
+    node.set_descriptor(name, ParameterDescriptor(description=description, type=type_.value,
+                                                  read_only=True))
+    return list(node.get_parameter(name).value)
+
+
 class RecorderNode(Node):
     """Subscribes to the graph's topics and writes what arrives into one bag."""
 
@@ -69,11 +82,10 @@ class RecorderNode(Node):
         self.declare_parameter('output', '', ParameterDescriptor(
             description=f'path of the MCAP bag to write, e.g. {EXAMPLE_OUTPUT}',
             read_only=True))
-        self.declare_parameter('topics', Parameter.Type.STRING_ARRAY, ParameterDescriptor(
-            description='absolute names of the topics to record (unset or empty: all)',
-            read_only=True))
-        self.declare_parameter('exclude', Parameter.Type.STRING_ARRAY, ParameterDescriptor(
-            description='absolute names of topics not to record', read_only=True))
+        topics = _declare_list(self, 'topics', Parameter.Type.STRING_ARRAY,
+                               'absolute names of the topics to record (empty: all)')
+        exclude = _declare_list(self, 'exclude', Parameter.Type.STRING_ARRAY,
+                                'absolute names of topics not to record')
         self.declare_parameter('flush_period_s', FLUSH_PERIOD_S, ParameterDescriptor(
             description='wall seconds between flushes of the bag (the most a crash loses)',
             floating_point_range=[positive], read_only=True))
@@ -84,8 +96,8 @@ class RecorderNode(Node):
         if not output:
             raise ValueError(f'parameter output is empty; give the bag path, e.g. '
                              f'-p output:={EXAMPLE_OUTPUT}')
-        self.only = set(_topic_list(self.get_parameter_or('topics').value, 'topics'))
-        self.exclude = set(_topic_list(self.get_parameter_or('exclude').value, 'exclude'))
+        self.only = set(_topic_list(topics, 'topics'))
+        self.exclude = set(_topic_list(exclude, 'exclude'))
         self.bag = BagWriter(output, self.get_parameter('flush_period_s').value)
         self.subscriptions_by_topic: dict[str, object] = {}
         self.skipped: set[str] = set()
