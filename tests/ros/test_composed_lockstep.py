@@ -112,7 +112,9 @@ def test_every_clock_advance_is_answered_by_every_agent(tmp_path):
 
 def test_a_composed_process_takes_its_agents_inputs_from_one_sensor_batch(tmp_path):
     """sensor_batch: the world's one message per step reaches each agent's brain."""
+    from swarm_agent.agent_factory import swarm_keyring
     from swarm_agent.conversions import sensor_batch_to_msg
+    from swarm_agent.frame_auth import FrameAuth
     from swarm_agent.mesh_messages import NeighbourInfo
     from swarm_agent.packet import BROADCAST, Kind, Packet
     from swarm_agent.wire import encode_heartbeat
@@ -126,7 +128,9 @@ def test_a_composed_process_takes_its_agents_inputs_from_one_sensor_batch(tmp_pa
     robots = [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 2, False, 5.0, 0.0),
               RobotSpec(2, 3, False, 9.0, 0.0)]
     info = NeighbourInfo(1, True, 0, (0.5, -0.25), (0.0, 0.0))
-    heartbeat = Packet(0, BROADCAST, Kind.HEARTBEAT, 7, 1, encode_heartbeat(7, info.encode()))
+    # Sealed under the development key the agents hold (frames are authenticated).
+    heartbeat = FrameAuth(swarm_keyring()).seal(
+        Packet(0, BROADCAST, Kind.HEARTBEAT, 7, 1, encode_heartbeat(7, info.encode())))
     with _container(tmp_path, robots, sensor_batch=True) as (executor, container, probe):
         batch = probe.create_publisher(SensorBatch, '/swarm/sensor_batch',
                                        QoSProfile(**qos.RADIO))

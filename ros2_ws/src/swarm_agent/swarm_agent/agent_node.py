@@ -35,6 +35,11 @@ none and the frame keeps the map axes (yaw 0: the body-frame twist and ``cmd_vel
 the map-frame velocity and setpoint); with ``external_pose`` (hardware) it is the
 camera's yaw, and ``cmd_vel`` is the setpoint rotated into the robot's frame.
 
+Radio frames are authenticated (``swarm_agent.frame_auth``, docs/security.md) under the
+keys of ``swarm_key_file`` (empty: the development key shipped in config/, with a
+warning); a key file that cannot be used stops the node with one line naming it.
+``auth:=false`` turns authentication off, only to compare with and without.
+
 The agent never subscribes to ``/swarm/truth``. With ``partition_locally`` the agent
 computes the partition of the announced shape itself (the thesis's future work: no
 central server); the mission node then only announces shapes.
@@ -65,7 +70,7 @@ from rclpy.time import Time
 from sensor_msgs.msg import Imu
 from tf2_msgs.msg import TFMessage
 
-from swarm_agent.agent_factory import make_brain, type_counts_from
+from swarm_agent.agent_factory import DEFAULT_KEY_FILE, make_brain, swarm_keyring, type_counts_from
 from swarm_agent.brain import BrainConfig, BrainConfigError
 from swarm_agent.conversions import (
     frames_or_log,
@@ -127,7 +132,11 @@ PARAMETERS = {
     'formation_margin_m': (0.6, 'Band (m) inside the contour a local partition leaves free '
                                 "for localization error (as the mission's); 0 on hardware"),
     'robot_types_file': ('', 'Robot type table YAML (default: the package config)'),
+    'swarm_key_file': ('', 'Swarm key file of the authenticated radio frames (empty: the '
+                           'development key in config/, simulation only; docs/security.md)'),
+    'auth': (True, 'Authenticate radio frames; false only to compare with and without'),
 }
+_warned_keys: set[str] = set()   # one key warning per process (composed: 50 agents)
 
 
 # The brain's tunables, generated from its configuration dataclasses (one source of
@@ -240,13 +249,15 @@ class AgentNode(Node):
                 f'parameter external_heading_std must be a finite number >= 0 rad, got '
                 f'{p["external_heading_std"]}: e.g. --ros-args -p external_heading_std:=0.05')
         self.params = p
+        keyring = swarm_keyring(p['swarm_key_file'] or None) if p['auth'] else None
+        self._warn_key(keyring)
         self.brain = make_brain(
             agent_id=p['agent_id'], agent_type=p['agent_type'], is_beacon=p['is_beacon'],
             method=p['method'], initial_position=(p['initial_x'], p['initial_y']),
             seed=p['seed'], localization_period_s=p['localization_period_s'],
             robot_types_file=p['robot_types_file'] or None,
             external_pose=p['external_pose'], initial_position_std=p['placement_std_m'],
-            settings=settings)
+            settings=settings, keyring=keyring, auth=p['auth'])
         self.add_on_set_parameters_callback(
             lambda params: set_brain_parameters([self.brain], params))
         self._type_counts = p['type_counts']
@@ -308,6 +319,21 @@ class AgentNode(Node):
         self.get_logger().info(
             f'agent {p["agent_id"]} type {p["agent_type"]} beacon={p["is_beacon"]} '
             f'method={p["method"]} ready')
+
+    def _warn_key(self, keyring) -> None:
+        """Say, once per process, when frames are not protected by a secret key."""
+        if keyring is None:
+            text = ('radio frames are NOT authenticated (auth:=false): any transmitter can '
+                    'steer this swarm')
+        elif keyring.development:
+            text = (f'radio frames are authenticated with the published development key '
+                    f'{DEFAULT_KEY_FILE}: set swarm_key_file to a secret key for a '
+                    'deployment (docs/security.md)')
+        else:
+            return
+        if text not in _warned_keys:
+            _warned_keys.add(text)
+            self.get_logger().warning(text)
 
     # -- time
     def _now(self) -> float:
