@@ -35,8 +35,9 @@ trailer), ``auth_unknown_key``, ``auth_bad_tag``, ``auth_replay``, ``auth_too_ol
 
 Verifying is the same computation for every receiver of one transmission: the tag check
 is cached per process on the frame's bytes (``_verified``: the same answer, computed once
-when a composed process or the headless evaluator holds many receivers); each receiver
-still applies its own replay window.
+when a composed process or the headless evaluator holds many receivers), and the last
+frame object checked is remembered (``_Verifier``: receivers of one transmission get it in
+a row); each receiver still applies its own replay window.
 
 Why 8 bytes of tag: a forger's chance per attempt is 2**-64; at the few hundred frames a
 second a radio carries that is beyond any attack time. 16 bytes would cost 8 more bytes
@@ -159,27 +160,68 @@ class ReplayWindow:
     def __init__(self, size: int = WINDOW) -> None:
         self.size = size
         self._full = (1 << size) - 1
-        self._state: dict[int, tuple[int, int]] = {}   # source -> (highest, bitmap)
+        self._state: dict[int, list[int]] = {}   # source -> [highest, bitmap]
 
     def check(self, source: int, counter: int) -> str | None:
         """None when ``counter`` is fresh (and record it), else the rejection kind."""
         state = self._state.get(source)
         if state is None:
-            self._state[source] = (counter, 1)
+            self._state[source] = [counter, 1]
             return None
-        top, bitmap = state
-        if counter > top:
+        top = state[0]
+        if counter > top:   # the common case: the source's next frame
             shift = counter - top
-            bitmap = ((bitmap << shift) | 1) & self._full if shift < self.size else 1
-            self._state[source] = (counter, bitmap)
+            state[1] = ((state[1] << shift) | 1) & self._full if shift < self.size else 1
+            state[0] = counter
             return None
         offset = top - counter
         if offset >= self.size:
             return 'auth_too_old'
-        if bitmap >> offset & 1:
+        if state[1] >> offset & 1:
             return 'auth_replay'
-        self._state[source] = (top, bitmap | 1 << offset)
+        state[1] |= 1 << offset
         return None
+
+
+class _Verifier:
+    """The tag check of one keyring, shared by every ``FrameAuth`` of a process that holds
+    it. A transmission is handed to its receivers one after another as the same object
+    (the headless evaluator, a composed process's sensor batch): the last frame checked
+    and its result are kept, so the next receivers pay an identity test."""
+
+    def __init__(self, keyring: Keyring) -> None:
+        self._keys = dict(keyring.keys)
+        self._last: Packet | None = None
+        self._result: tuple[Packet, int] | str = ''
+
+    def __call__(self, packet: Packet) -> tuple[Packet, int] | str:
+        """(the frame without its trailer, its counter) or the rejection kind."""
+        if packet is self._last:
+            return self._result
+        result = self._check(packet)
+        self._last, self._result = packet, result
+        return result
+
+    def _check(self, packet: Packet) -> tuple[Packet, int] | str:
+        payload = packet.payload
+        size = len(payload)
+        if size < TRAILER_BYTES:
+            return 'auth_short'
+        key_id, counter = _TRAILER.unpack_from(payload, size - TRAILER_BYTES)
+        key = self._keys.get(key_id)
+        if key is None:
+            return 'auth_unknown_key'
+        try:
+            opened = _verified(key, packet.source, packet.destination, packet.kind,
+                               packet.sequence, packet.ttl, payload)
+        except struct.error:   # header fields out of range: no radio sends those
+            opened = None
+        return 'auth_bad_tag' if opened is None else (opened, counter)
+
+
+@functools.lru_cache(maxsize=64)
+def _verifier(keyring: Keyring) -> _Verifier:
+    return _Verifier(keyring)
 
 
 class FrameAuth:
@@ -189,6 +231,7 @@ class FrameAuth:
                  window: int = WINDOW) -> None:
         self.keyring = keyring
         self._seal_key = keyring.key(keyring.seal_id)
+        self._verify = _verifier(keyring)
         self._counter = boot_counter(clock()) - 1
         self.window = ReplayWindow(window)
         self.stats: dict[str, int] = {}
@@ -210,20 +253,10 @@ class FrameAuth:
 
     def open(self, packet: Packet) -> Packet | None:
         """The frame with the trailer removed, or None (counted) when it fails."""
-        payload = packet.payload
-        if len(payload) < TRAILER_BYTES:
-            return self._reject('auth_short')
-        key_id, counter = _TRAILER.unpack_from(payload, len(payload) - TRAILER_BYTES)
-        key = self.keyring.key(key_id)
-        if key is None:
-            return self._reject('auth_unknown_key')
-        try:
-            opened = _verified(key, packet.source, packet.destination, packet.kind,
-                               packet.sequence, packet.ttl, payload)
-        except struct.error:   # header fields out of range: no radio sends those
-            opened = None
-        if opened is None:
-            return self._reject('auth_bad_tag')
+        result = self._verify(packet)
+        if result.__class__ is str:
+            return self._reject(result)
+        opened, counter = result
         verdict = self.window.check(packet.source, counter)
         if verdict is not None:
             return self._reject(verdict)
