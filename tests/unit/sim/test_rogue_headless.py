@@ -17,9 +17,10 @@ from __future__ import annotations
 import pathlib
 
 import numpy as np
+import pytest
 
 from swarm_common.shapes import load_shape
-from swarm_sim.headless import HeadlessSwarm, Scenario
+from swarm_sim.headless import HeadlessSwarm, Scenario, ScenarioError
 from swarm_sim.rogue import ForgedAdverts
 
 SQUARE = pathlib.Path(__file__).resolve().parents[2] / 'data' / 'square_8m.json'
@@ -60,3 +61,13 @@ def test_without_authentication_the_rogue_hides_the_removed_agents():
     assert record.metrics['auth'] is False and record.metrics['frames_rejected'] == {}
     assert swarm.mission.lost == set()            # 4 and 9 are gone, but "one hop away"
     assert set(REMOVED) <= swarm.mission.alive
+
+
+def test_a_key_file_that_cannot_be_used_is_refused_before_the_run():
+    scenario = Scenario(shape=load_shape(str(SQUARE)), type_counts={1: 3}, n_beacons=3,
+                        swarm_key_file='/nonexistent/keys.yaml')
+    with pytest.raises(ScenarioError, match='/nonexistent/keys.yaml') as err:
+        scenario.validate()
+    assert '\n' not in str(err.value)
+    Scenario(shape=scenario.shape, type_counts={1: 3}, n_beacons=3, auth=False,
+             swarm_key_file='/nonexistent/keys.yaml').validate()   # not read when off
