@@ -49,10 +49,8 @@ import sys
 
 from geometry_msgs.msg import TransformStamped
 from rcl_interfaces.msg import ParameterDescriptor
-import rclpy
 from rclpy.clock import ROSClock
 from rclpy.event_handler import EventHandler
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
@@ -73,7 +71,7 @@ from swarm_agent.brain import BrainConfigError
 from swarm_agent.conversions import sensor_batch_from_msg, stamp_seconds
 from swarm_agent.packet import PacketError
 from swarm_common import qos
-from swarm_common.ros_support import BAD_INPUT
+from swarm_common.ros_support import run_node
 from swarm_msgs.msg import ForceBatch, FormationShape, GoalArray, RadioPacketArray, SensorBatch
 
 SHARED = {
@@ -321,30 +319,14 @@ class FleetError(ValueError):
 
 def main(args=None) -> None:
     """Run a composed swarm (``ros2 run swarm_agent composed_node``)."""
-    rclpy.init(args=args)
-    executor = make_executor()
-    try:
-        container = ComposedAgents(executor)
-    except BAD_INPUT as exc:
-        print(f'composed_node: {" ".join(str(exc).split())}', file=sys.stderr)
-        rclpy.try_shutdown()
-        sys.exit(2)
-    executor.add_node(container)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except RuntimeError as exc:
-        # A message taken while SIGINT tears the subscriptions down fails to convert
-        # (ros2/rclpy#848; seen only when the launcher stops the run, with the context
-        # still reported ok). Any other RuntimeError is real.
-        if 'Unable to convert call argument' not in str(exc):
-            raise
-        container.get_logger().warning(f'stopped while taking a message: {exc}')
-    finally:
-        container.destroy_all()
-        container.destroy_node()
-        rclpy.try_shutdown()
+    executors = []
+
+    def make_container() -> ComposedAgents:
+        executors.append(make_executor())   # the agents' nodes are added to it
+        return ComposedAgents(executors[0])
+
+    run_node(make_container, 'composed_node', args, executor=lambda: executors[0],
+             stop=ComposedAgents.destroy_all)
 
 
 if __name__ == '__main__':

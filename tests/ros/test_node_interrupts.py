@@ -1,0 +1,52 @@
+"""Every node's main (swarm_common.ros_support.run_node) stops quietly on Ctrl-C: also
+on a second one while it cleans up (``ros2 launch`` forwards its own SIGINT after the
+terminal's) and on one while the node is still starting."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+
+NODE = textwrap.dedent('''
+    import os, signal, sys, time
+    from rclpy.node import Node
+    from swarm_common.ros_support import run_node
+
+    def interrupt():
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.5)                      # the signal lands in here
+
+    def make():
+        if sys.argv[1] == 'start':
+            interrupt()                      # Ctrl-C while the node starts
+        node = Node('interrupted')
+        node.create_timer(0.05, lambda: os.kill(os.getpid(), signal.SIGINT))
+        return node
+
+    def stop(node):
+        interrupt()                          # a second Ctrl-C while it cleans up
+        print('cleaned up', flush=True)
+
+    run_node(make, 'interrupted', stop=stop)
+''')
+
+
+def _run(when: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, '-c', NODE, when], capture_output=True,
+                          text=True, timeout=60, env=dict(os.environ))
+
+
+def test_a_second_interrupt_during_clean_up_is_ignored():
+    result = _run('spin')
+    assert result.returncode == 0, result.stderr
+    assert 'cleaned up' in result.stdout
+    assert 'Traceback' not in result.stderr, result.stderr
+
+
+def test_an_interrupt_while_the_node_starts_ends_it_quietly():
+    result = _run('start')
+    assert result.returncode == 0, result.stderr
+    assert 'Traceback' not in result.stderr, result.stderr
+    assert 'cleaned up' not in result.stdout
