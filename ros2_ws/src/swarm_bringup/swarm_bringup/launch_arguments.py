@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 import pathlib
+import re
 import tempfile
 
 from swarm_bringup.launch_plan import (
@@ -121,7 +122,12 @@ def plan_from_arguments(given: Mapping[str, str]) -> tuple[list[NodeSpec], pathl
     argv += ['--shape', values['shape'], '--method', values['method'], '--seed', str(seed),
              '--half-size', str(half_size), '--out', str(out)]
     args = parse_args(argv)
-    _, counts, _, generated = validate(args)
+    try:
+        _, counts, _, generated = validate(args)
+    except LaunchError as exc:
+        # The checks are the launcher's: name the launch arguments, not its flags.
+        raise LaunchError(re.sub(r'--([a-z_-]+) ', lambda m: m[1].replace('-', '_') + ':=',
+                                 str(exc))) from None
     out.mkdir(parents=True, exist_ok=True)
     if fleet is None:
         fleet = generated

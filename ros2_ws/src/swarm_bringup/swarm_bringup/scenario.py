@@ -263,8 +263,8 @@ def validate(args: argparse.Namespace):
     try:
         counts = fleet_counts(args.agents, args.types)
         if sum(counts.values()) != args.agents:
-            raise LaunchError(f'--types sums to {sum(counts.values())}, --agents is '
-                              f'{args.agents}')
+            raise LaunchError(f'--types {args.types} sums to {sum(counts.values())}, not '
+                              f'--agents {args.agents}')
         shape = load_shape(args.shape)
         args.obstacle_moves = sorted(parse_move_obstacle(spec, len(shape.obstacles))
                                      for spec in args.move_obstacle)
