@@ -9,8 +9,15 @@ trailer's bytes per frame, microseconds per seal and per delivery; with the fram
 of an evaluator run (its metrics.json: medium.sent, medium.delivered) the CPU time
 authentication adds to that run, to set beside its measured time.
 
+``--evaluator SECONDS`` measures the whole cost in the headless evaluator: two
+processes side by side (the same load on both), each running the 50-agent thesis
+scenario (seed 0) for SECONDS of sim time, one authenticated, one not but with frames
+given the trailer's airtime, so that both runs are the same frame for frame and only the
+checks differ; prints the CPU seconds of each.
+
   scripts/env.sh python benchmarks/bench_frame_auth.py --frames 20000
   scripts/env.sh python benchmarks/bench_frame_auth.py --metrics DIR/metrics.json
+  scripts/env.sh python benchmarks/bench_frame_auth.py --evaluator 150
 """
 
 from __future__ import annotations
@@ -18,6 +25,8 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -59,12 +68,44 @@ def bench(frames: int, receivers: int = 28) -> dict:
             'delivery_us': 1e6 * (t2 - t1) / (frames * receivers)}
 
 
+def evaluator_run(mode: str, duration: float) -> str:
+    """One headless run (``auth`` or ``padded``); its CPU seconds and frame counts."""
+    from swarm_eval.scenario import build_scenario, ScenarioSpec
+    from swarm_sim.headless import HeadlessSwarm
+    import swarm_sim.medium as medium
+
+    if mode == 'padded':
+        medium.FRAME_OVERHEAD_BYTES += TRAILER_BYTES
+    swarm = HeadlessSwarm(build_scenario(ScenarioSpec(duration=duration,
+                                                      auth=mode == 'auth'), 0))
+    c0 = time.process_time()
+    record = swarm.run()
+    cpu = time.process_time() - c0
+    m = record.metrics['medium']
+    return (f'{mode}: {record.times[-1]:.0f} s simulated, {cpu:.1f} s CPU, {m["sent"]} '
+            f'frames sent, {m["delivered"]} delivered')
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--frames', type=int, default=20000)
     parser.add_argument('--receivers', type=int, default=28)
     parser.add_argument('--metrics', default='', help="an evaluator run's metrics.json")
+    parser.add_argument('--evaluator', type=float, default=0.0, metavar='SECONDS',
+                        help='A/B of the headless evaluator (module docstring)')
+    parser.add_argument('--one', choices=('auth', 'padded'), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.one:
+        print(evaluator_run(args.one, args.evaluator))
+        return 0
+    if args.evaluator > 0.0:
+        runs = [subprocess.Popen([sys.executable, __file__, '--evaluator',
+                                  str(args.evaluator), '--one', mode],
+                                 stdout=subprocess.PIPE, text=True)
+                for mode in ('auth', 'padded')]
+        for run in runs:
+            print(run.communicate()[0].strip())
+        return 0
     r = bench(args.frames, args.receivers)
     print(f'trailer {r["trailer_bytes"]} bytes per frame (bodies {r["body_bytes"]}); '
           f'seal {r["seal_us"]:.2f} us a frame, open {r["delivery_us"]:.2f} us a delivery '
