@@ -141,15 +141,28 @@ def boot_counter(boot_time_s: float) -> int:
     return int(round(boot_time_s * COUNTER_SCALE)) & COUNTER_MASK
 
 
+@functools.lru_cache(maxsize=64)
+def _keyed(key: bytes) -> hmac.HMAC:
+    """HMAC-SHA256 with ``key`` set up, to be copied per frame: 1.8 us a tag against 6.5
+    for ``hmac.digest`` (which looks the digest up in OpenSSL 3 at every call)."""
+    return hmac.new(key, digestmod='sha256')
+
+
+def _tag(key: bytes, data: bytes) -> bytes:
+    mac = _keyed(key).copy()
+    mac.update(data)
+    return mac.digest()[:TAG_BYTES]
+
+
 @functools.lru_cache(maxsize=8192)
 def _verified(key: bytes, source: int, destination: int, kind: int, sequence: int, ttl: int,
               payload: bytes) -> Packet | None:
     """The frame without its trailer if the tag matches (payload holds the trailer), else
     None. Cached: every receiver of one transmission asks the same question, and gets the
     same read-only frame (whose payload object the decoders' caches then hash once)."""
-    mac = hmac.digest(key, _LINK.pack(source, destination, kind, sequence, ttl)
-                      + payload[:-TAG_BYTES], 'sha256')
-    if not hmac.compare_digest(mac[:TAG_BYTES], payload[-TAG_BYTES:]):
+    tag = _tag(key, _LINK.pack(source, destination, kind, sequence, ttl)
+               + payload[:-TAG_BYTES])
+    if not hmac.compare_digest(tag, payload[-TAG_BYTES:]):
         return None
     return Packet(source, destination, kind, sequence, ttl, payload[:-TRAILER_BYTES])
 
@@ -234,6 +247,8 @@ class FrameAuth:
         self._verify = _verifier(keyring)
         self._counter = boot_counter(clock()) - 1
         self.window = ReplayWindow(window)
+        self._windows = self.window._state
+        self._size, self._full = window, (1 << window) - 1
         self.stats: dict[str, int] = {}
 
     @property
@@ -245,18 +260,30 @@ class FrameAuth:
         """The frame with the trailer appended to its payload."""
         self._counter = (self._counter + 1) & COUNTER_MASK
         body = packet.payload + _TRAILER.pack(self.keyring.seal_id, self._counter)
-        mac = hmac.digest(self._seal_key, _LINK.pack(
+        tag = _tag(self._seal_key, _LINK.pack(
             packet.source, packet.destination, packet.kind, packet.sequence, packet.ttl)
-            + body, 'sha256')
+            + body)
         return Packet(packet.source, packet.destination, packet.kind, packet.sequence,
-                      packet.ttl, body + mac[:TAG_BYTES])
+                      packet.ttl, body + tag)
 
     def open(self, packet: Packet) -> Packet | None:
-        """The frame with the trailer removed, or None (counted) when it fails."""
-        result = self._verify(packet)
+        """The frame with the trailer removed, or None (counted) when it fails.
+
+        Runs for every frame every receiver hears (2.6 million times in the 50-agent
+        evaluator run): the kept result of the last frame checked and the window's
+        common case, the source's next counter, are inlined.
+        """
+        verify = self._verify
+        result = verify._result if packet is verify._last else verify(packet)
         if result.__class__ is str:
             return self._reject(result)
         opened, counter = result
+        state = self._windows.get(packet.source)
+        if state is not None and counter > state[0]:   # ReplayWindow.check, inlined
+            shift = counter - state[0]
+            state[1] = ((state[1] << shift) | 1) & self._full if shift < self._size else 1
+            state[0] = counter
+            return opened
         verdict = self.window.check(packet.source, counter)
         if verdict is not None:
             return self._reject(verdict)
