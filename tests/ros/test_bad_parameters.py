@@ -19,7 +19,7 @@ DOC = ROOT / 'docs' / 'parameters.md'
 
 
 def test_every_node_refuses_a_bad_parameter_in_one_line():
-    outcomes = run_cases(CASES, workers=4, cwd=str(ROOT))
+    outcomes = run_cases(CASES, workers=2, cwd=str(ROOT))
     problems = [f'{o.executable} {o.given}: {o.problem()}\n{o.output}' for o in outcomes
                 if o.problem()]
     assert problems == []

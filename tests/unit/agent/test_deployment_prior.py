@@ -72,7 +72,7 @@ def test_the_agents_prior_is_the_worlds_placement_error_by_default():
     from swarm_agent.agent_node import PARAMETERS as AGENT
     from swarm_agent.composed_node import SHARED
     from swarm_common.fleet import PLACEMENT_STD_M
-    from swarm_sim.sim_node import PARAMETERS as SIM
+    from swarm_sim.sim_parameters import SimParameters
 
     assert AGENT['placement_std_m'][0] == SHARED['placement_std_m'][0] == \
-        SIM['placement_std_m'][0] == PLACEMENT_STD_M
+        SimParameters().placement_std_m == PLACEMENT_STD_M

@@ -250,7 +250,6 @@ class AgentNode(Node):
                 f'{p["external_heading_std"]}: e.g. --ros-args -p external_heading_std:=0.05')
         self.params = p
         keyring = swarm_keyring(p['swarm_key_file'] or None) if p['auth'] else None
-        self._warn_key(keyring)
         self.brain = make_brain(
             agent_id=p['agent_id'], agent_type=p['agent_type'], is_beacon=p['is_beacon'],
             method=p['method'], initial_position=(p['initial_x'], p['initial_y']),
@@ -316,6 +315,8 @@ class AgentNode(Node):
             self.create_timer(1.0 / p['routes_rate_hz'], self.publish_routes)
             if p['status_log_period_s'] > 0:
                 self.create_timer(p['status_log_period_s'], self.log_status)
+        # Once the node has started: a node that refuses its input prints one line only.
+        self._warn_key(keyring)
         self.get_logger().info(
             f'agent {p["agent_id"]} type {p["agent_type"]} beacon={p["is_beacon"]} '
             f'method={p["method"]} ready')
