@@ -61,11 +61,10 @@ def test_rendered_camera_and_tracker_give_the_true_poses(tmp_path):
                 turn = math.degrees(math.remainder(_yaw(msg) - _yaw(true), math.tau))
                 assert abs(turn) < 3.0, (k, turn)
             def published(node: str) -> set[str]:
-                try:
-                    return {name for name, _ in
-                            world.get_publisher_names_and_types_by_node(node, '/')}
-                except rclpy.exceptions.NodeNameNonExistentError:   # not discovered yet
-                    return set()
+                if (node, '/') not in world.get_node_names_and_namespaces():
+                    return set()                              # not discovered yet
+                return {name for name, _ in
+                        world.get_publisher_names_and_types_by_node(node, '/')}
 
             # The images leave through a DDS participant of their own (hil_camera), the
             # poses come from the tracker: the world publishes neither.
