@@ -24,7 +24,7 @@ from swarm_agent.agent_node import AgentNode, make_executor  # noqa: E402
 from swarm_agent.brain import BrainConfigError  # noqa: E402
 from swarm_agent.composed_node import ComposedAgents  # noqa: E402
 from swarm_agent.conversions import yaw_of, yaw_quaternion  # noqa: E402
-from swarm_bridge.hw_agent_node import HwAgentNode  # noqa: E402
+from swarm_agent.hw_agent_node import HwAgentNode  # noqa: E402
 from swarm_common import qos  # noqa: E402
 from swarm_common.conversions import goals_to_msg, shape_to_msg  # noqa: E402
 from swarm_common.fleet import RobotSpec, save_fleet  # noqa: E402

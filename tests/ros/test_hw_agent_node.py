@@ -16,7 +16,7 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile  # noqa: E402
 
-from swarm_bridge.hw_agent_node import HwAgentNode  # noqa: E402
+from swarm_agent.hw_agent_node import HwAgentNode  # noqa: E402
 from swarm_common import qos  # noqa: E402
 from swarm_msgs.msg import AgentState  # noqa: E402
 

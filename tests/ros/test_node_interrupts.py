@@ -9,7 +9,7 @@ import subprocess
 import sys
 import textwrap
 
-NODE = textwrap.dedent('''
+NODE = textwrap.dedent("""
     import os, signal, sys, time
     from rclpy.node import Node
     from swarm_common.ros_support import run_node
@@ -30,7 +30,7 @@ NODE = textwrap.dedent('''
         print('cleaned up', flush=True)
 
     run_node(make, 'interrupted', stop=stop)
-''')
+""")
 
 
 def _run(when: str) -> subprocess.CompletedProcess:

@@ -249,7 +249,7 @@ def hw_agent_nodes(robots: list, poses: list[tuple[float, float, float]],
                    type_counts: str) -> list[NodeSpec]:
     """One hardware agent per robot, ``/agent_K`` (its topics under ``agent_K/``), at
     its initial pose."""
-    return [NodeSpec('swarm_bridge', 'hw_agent_node', f'agent_{robot.id}',
+    return [NodeSpec('swarm_agent', 'hw_agent_node', f'agent_{robot.id}',
                      name=f'agent_{robot.id}',
                      params_files=(str(bridge_config('hw_agent.yaml')),), parameters={
                          'agent_id': robot.id, 'agent_type': robot.type,

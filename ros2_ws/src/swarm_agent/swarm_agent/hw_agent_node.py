@@ -1,17 +1,17 @@
 """hw_agent_node: swarm_agent's agent_node on a real robot seen by the overhead camera (ch. 5).
 
-The brain and its parameters are agent_node's; config/hw_agent.yaml sets the distances
-of the 2 x 2 m arena on them (park within 2 cm of the goal, resume beyond 6 cm, 3.5
-cm/s: the brain's defaults are sized for the 100 m simulation with its 2 m LPS noise,
-and with them the robots would never leave their start). This node adds what a robot
-without an IMU or LPS needs from the camera.
+The brain and its parameters are agent_node's; swarm_bridge's config/hw_agent.yaml sets
+the distances of the 2 x 2 m arena on them (park within 2 cm of the goal, resume beyond
+6 cm, 3.5 cm/s: the brain's defaults are sized for the 100 m simulation with its 2 m LPS
+noise, and with them the robots would never leave their start). This node adds what a
+robot without an IMU or LPS needs from the camera.
 
 Camera poses. The thesis's robots have no IMU and no LPS (5.1): the camera position is
 their position. agent_node feeds it to the Kalman filter of 3.1.4 as a GPS fix, but with
 no accelerometer the filter never predicts, its covariance only shrinks and the estimate
 lags the robot more and more (measured: 0.25 m behind after 20 s, so robots overshoot
 their goals). This node therefore sets the estimate from each camera pose
-(:class:`~swarm_bridge.camera_pose.CameraPoseWindow`): velocity as the camera
+(:class:`~swarm_agent.camera_pose.CameraPoseWindow`): velocity as the camera
 displacement over ``velocity_window`` seconds of capture stamps, position as measured
 predicted forward over the pose's age (its stamp is the frame's capture time; the
 camera's latency is up to ``max_pose_age`` seconds, an older or unset stamp is taken as
@@ -37,8 +37,8 @@ import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 
 from swarm_agent.agent_node import AgentNode, make_executor
+from swarm_agent.camera_pose import CameraPoseWindow
 from swarm_agent.conversions import stamp_seconds, yaw_of
-from swarm_bridge.camera_pose import CameraPoseWindow
 from swarm_common.ros_support import run_node
 
 PARAMETERS = {
@@ -109,7 +109,7 @@ class HwAgentNode(AgentNode):
 
 
 def main(args: list[str] | None = None) -> None:
-    """Run one hardware agent (``ros2 run swarm_bridge hw_agent_node``)."""
+    """Run one hardware agent (``ros2 run swarm_agent hw_agent_node``)."""
     run_node(HwAgentNode, 'hw_agent_node', args, executor=make_executor,
              stop=HwAgentNode.stop)
 

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from swarm_bridge.camera_pose import CameraPoseWindow
+from swarm_agent.camera_pose import CameraPoseWindow
 
 V = np.array([0.035, -0.02])      # m/s: the boards' top speed (config/hw_agent.yaml)
 W = 0.4                           # rad/s
