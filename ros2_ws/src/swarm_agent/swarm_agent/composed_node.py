@@ -71,7 +71,7 @@ from swarm_agent.brain import BrainConfigError
 from swarm_agent.conversions import sensor_batch_from_msg, stamp_seconds
 from swarm_agent.packet import PacketError
 from swarm_common import qos
-from swarm_common.ros_support import run_node
+from swarm_common.ros_support import declare_list_parameter, run_node
 from swarm_msgs.msg import ForceBatch, FormationShape, GoalArray, RadioPacketArray, SensorBatch
 
 SHARED = {
@@ -91,19 +91,6 @@ SHARED = {
                             'shape and goals through the container, instead of per-robot '
                             'topics'),
 }
-
-
-def _declare_list(node: Node, name: str, type_: Parameter.Type, description: str) -> list:
-    """Declare the read-only list parameter ``name``, the empty list unless given, and
-    return its value. rclpy infers no type from ``[]``, and a parameter declared with a
-    type only has no value: a get_parameters request that names it gets no values at all,
-    which empties ``ros2 param dump`` of the node."""
-    node.declare_parameter(name, type_, ParameterDescriptor(description=description))
-    if node.get_parameter_or(name).value is None:
-        node.set_parameters([Parameter(name, type_, [])])
-    node.set_descriptor(name, ParameterDescriptor(description=description, type=type_.value,
-                                                  read_only=True))
-    return list(node.get_parameter(name).value)
 
 
 def _has_callbacks(node: Node) -> bool:
@@ -126,7 +113,7 @@ class ComposedAgents(Node):
                                    ParameterDescriptor(description=text, read_only=True))
         # The brain's tunables, for every agent of the process; live ones apply to all.
         settings = declare_brain_parameters(self)
-        only = _declare_list(self, 'agent_ids', Parameter.Type.INTEGER_ARRAY,
+        only = declare_list_parameter(self, 'agent_ids', Parameter.Type.INTEGER_ARRAY,
                              'Ids of the fleet to run here (empty: all); the others run '
                              'elsewhere') or None
         p = {name: self.get_parameter(name).value for name in SHARED}

@@ -36,7 +36,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 
 from swarm_bringup.bag import BagError, BagWriter, FLUSH_PERIOD_S, recording_qos
-from swarm_common.ros_support import run_node
+from swarm_common.ros_support import declare_list_parameter, run_node
 
 EXAMPLE_OUTPUT = 'results/demo/run.mcap'
 BATCH_S = 0.02   # the least wall time between two waits of the executor
@@ -60,19 +60,6 @@ def _topic_list(value, name: str) -> list[str]:
     return topics
 
 
-def _declare_list(node: Node, name: str, type_: Parameter.Type, description: str) -> list:
-    """Declare the read-only list parameter ``name``, the empty list unless given, and
-    return its value. rclpy infers no type from ``[]``, and a parameter declared with a
-    type only has no value: a get_parameters request that names it gets no values at all,
-    which empties ``ros2 param dump`` of the node."""
-    node.declare_parameter(name, type_, ParameterDescriptor(description=description))
-    if node.get_parameter_or(name).value is None:
-        node.set_parameters([Parameter(name, type_, [])])
-    node.set_descriptor(name, ParameterDescriptor(description=description, type=type_.value,
-                                                  read_only=True))
-    return list(node.get_parameter(name).value)
-
-
 class RecorderNode(Node):
     """Subscribes to the graph's topics and writes what arrives into one bag."""
 
@@ -82,9 +69,9 @@ class RecorderNode(Node):
         self.declare_parameter('output', '', ParameterDescriptor(
             description=f'path of the MCAP bag to write, e.g. {EXAMPLE_OUTPUT}',
             read_only=True))
-        topics = _declare_list(self, 'topics', Parameter.Type.STRING_ARRAY,
+        topics = declare_list_parameter(self, 'topics', Parameter.Type.STRING_ARRAY,
                                'absolute names of the topics to record (empty: all)')
-        exclude = _declare_list(self, 'exclude', Parameter.Type.STRING_ARRAY,
+        exclude = declare_list_parameter(self, 'exclude', Parameter.Type.STRING_ARRAY,
                                 'absolute names of topics not to record')
         self.declare_parameter('flush_period_s', FLUSH_PERIOD_S, ParameterDescriptor(
             description='wall seconds between flushes of the bag (the most a crash loses)',

@@ -17,11 +17,13 @@ import signal
 import sys
 from typing import TypeVar
 
+from rcl_interfaces.msg import ParameterDescriptor
 import rclpy
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 N = TypeVar('N', bound=Node)
 
@@ -107,3 +109,16 @@ def lean_subscription(node, msg_type, topic: str, callback, qos_profile, **kwarg
     return node.create_subscription(
         msg_type, topic, callback, qos_profile,
         event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False), **kwargs)
+
+
+def declare_list_parameter(node: Node, name: str, type_: Parameter.Type, description: str) -> list:
+    """Declare the read-only list parameter ``name``, the empty list unless given, and
+    return its value. rclpy infers no type from ``[]``, and a parameter declared with a
+    type only has no value: a get_parameters request that names it gets no values at all,
+    which empties ``ros2 param dump`` of the node."""
+    node.declare_parameter(name, type_, ParameterDescriptor(description=description))
+    if node.get_parameter_or(name).value is None:
+        node.set_parameters([Parameter(name, type_, [])])
+    node.set_descriptor(name, ParameterDescriptor(description=description, type=type_.value,
+                                                  read_only=True))
+    return list(node.get_parameter(name).value)
