@@ -6,6 +6,7 @@ fleet colour is refused naming the file."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import cv2
@@ -69,18 +70,31 @@ def _camera_status(diags: list):
     return None
 
 
-def test_frames_on_the_image_topic_become_poses_and_a_bad_frame_is_counted(tmp_path):
-    _, frame = _scene(tmp_path)
+@contextlib.contextmanager
+def _tracker(tmp_path, **params):
+    """A CameraTrackerNode on tmp_path/cal.yaml and a probe listening to its poses and
+    diagnostics, with an image publisher: (executor, node, probe, pub, poses, diags)."""
     with ros_context() as (context, executor):
         node = CameraTrackerNode(context=context, parameter_overrides=[
             Parameter('calibration_file', value=str(tmp_path / 'cal.yaml')),
-            Parameter('status_period', value=0.2)])
+            *(Parameter(name, value=value) for name, value in params.items())])
         probe = rclpy.create_node('probe', context=context)
         executor.add_node(node)
         executor.add_node(probe)
         poses, diags = {}, []
         _listen(probe, poses, diags)
         pub = probe.create_publisher(Image, '/image', QoSProfile(**IMAGE_QOS))
+        try:
+            yield executor, node, probe, pub, poses, diags
+        finally:
+            node.close()
+            node.destroy_node()
+            probe.destroy_node()
+
+
+def test_frames_on_the_image_topic_become_poses_and_a_bad_frame_is_counted(tmp_path):
+    _, frame = _scene(tmp_path)
+    with _tracker(tmp_path, status_period=0.2) as (executor, node, probe, pub, poses, diags):
         bad = image_to_msg(frame, probe.get_clock().now().to_msg())
         bad.encoding = '16UC1'
         good = image_to_msg(frame, probe.get_clock().now().to_msg())
@@ -90,22 +104,16 @@ def test_frames_on_the_image_topic_become_poses_and_a_bad_frame_is_counted(tmp_p
                 pub.publish(msg)
                 return condition()
             return spin_until(executor, step, 20.0)
-        try:
-            assert sent(good, lambda: len(poses) == len(ROBOTS)), f'poses of {sorted(poses)}'
-            _check(poses)
-            assert sent(bad, lambda: node.counts['bad_frames'] >= 1)
-            assert spin_until(executor, lambda: (s := _camera_status(diags)) is not None
-                              and 'encoding' in s.message, 10.0)
-            small = image_to_msg(np.ascontiguousarray(frame[:240, :320]),
-                                 probe.get_clock().now().to_msg())
-            assert sent(small, lambda: 'calibration_file is for 640x480' in (
-                node._problem or ''))
-            poses.clear()
-            assert sent(good, lambda: len(poses) == len(ROBOTS))   # and it kept going
-        finally:
-            node.close()
-            node.destroy_node()
-            probe.destroy_node()
+        assert sent(good, lambda: len(poses) == len(ROBOTS)), f'poses of {sorted(poses)}'
+        _check(poses)
+        assert sent(bad, lambda: node.counts['bad_frames'] >= 1)
+        assert spin_until(executor, lambda: (s := _camera_status(diags)) is not None
+                          and 'encoding' in s.message, 10.0)
+        small = image_to_msg(np.ascontiguousarray(frame[:240, :320]),
+                             probe.get_clock().now().to_msg())
+        assert sent(small, lambda: 'calibration_file is for 640x480' in (node._problem or ''))
+        poses.clear()
+        assert sent(good, lambda: len(poses) == len(ROBOTS))   # and it kept going
 
 
 def test_a_wide_lens_and_a_warm_white_balance_once_calibrated(tmp_path):
@@ -118,27 +126,14 @@ def test_a_wide_lens_and_a_warm_white_balance_once_calibrated(tmp_path):
         assert calibrate_main(step + sim) == 0
     renderer = CameraRenderer(CameraConfig(k1=-0.08, k2=0.01, white_balance=(1.0, 0.85, 0.65)))
     frame = renderer.render([Cover(COLORS[r.color], r.radius, *p) for r, p in zip(ROBOTS, POSES)])
-    with ros_context() as (context, executor):
-        node = CameraTrackerNode(context=context, parameter_overrides=[
-            Parameter('calibration_file', value=str(tmp_path / 'cal.yaml'))])
-        probe = rclpy.create_node('probe', context=context)
-        executor.add_node(node)
-        executor.add_node(probe)
-        poses, diags = {}, []
-        _listen(probe, poses, diags)
-        pub = probe.create_publisher(Image, '/image', QoSProfile(**IMAGE_QOS))
+    with _tracker(tmp_path) as (executor, node, probe, pub, poses, diags):
         msg = image_to_msg(frame, probe.get_clock().now().to_msg())
 
         def step() -> bool:
             pub.publish(msg)
             return len(poses) == len(ROBOTS)
-        try:
-            assert spin_until(executor, step, 20.0), f'poses of {sorted(poses)}'
-            _check(poses)
-        finally:
-            node.close()
-            node.destroy_node()
-            probe.destroy_node()
+        assert spin_until(executor, step, 20.0), f'poses of {sorted(poses)}'
+        _check(poses)
 
 
 def test_a_calibration_without_a_fleet_colour_is_refused_naming_the_file(tmp_path):
