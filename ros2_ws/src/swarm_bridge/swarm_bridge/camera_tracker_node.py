@@ -4,7 +4,7 @@ Wiring (logic in camera_tracker.CameraTracker, pixels to metres in arena_calibra
 
   image (source '')     sensor_msgs/Image (bgr8, rgb8, mono8...) -> one frame
   source /dev/videoN, N or a video file: read with cv2.VideoCapture at frame_rate
-  /agent_K/pose         geometry_msgs/PoseStamped (map frame, yaw CCW) per robot seen,
+  agent_K/pose          geometry_msgs/PoseStamped (map frame, yaw CCW) per robot seen,
                         stamped with the frame's capture time: what agent_node
                         (external_pose) and bridge_node read
   camera/annotated      sensor_msgs/Image: the frame with ids, headings and flags (Fig. 5.4)
@@ -108,7 +108,7 @@ class CameraTrackerNode(Node):
         self._capture = None
         sensor = QoSProfile(**qos.SENSOR)
         self._pose_pubs = {r.id: self.create_publisher(
-            PoseStamped, f'/agent_{r.id}/pose', sensor) for r in robots}
+            PoseStamped, f'agent_{r.id}/pose', sensor) for r in robots}
         self._annotated = (self.create_publisher(Image, 'camera/annotated',
                                                  QoSProfile(**IMAGE_QOS))
                            if p['publish_annotated'] else None)
