@@ -5,9 +5,12 @@ terminal's) and on one while the node is still starting."""
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import textwrap
+
+import pytest
 
 NODE = textwrap.dedent("""
     import os, signal, sys, time
@@ -33,20 +36,29 @@ NODE = textwrap.dedent("""
 """)
 
 
-def _run(when: str) -> subprocess.CompletedProcess:
+def _run(when: str, sigint) -> subprocess.CompletedProcess:
+    """Run the node with SIGINT as its parent leaves it: the default, or ignored (a job
+    started in the background of a non-interactive shell, e.g. under nohup)."""
     return subprocess.run([sys.executable, '-c', NODE, when], capture_output=True,
-                          text=True, timeout=60, env=dict(os.environ))
+                          text=True, timeout=60, env=dict(os.environ),
+                          preexec_fn=lambda: signal.signal(signal.SIGINT, sigint))
 
 
-def test_a_second_interrupt_during_clean_up_is_ignored():
-    result = _run('spin')
+INHERITED = pytest.mark.parametrize('sigint', [signal.SIG_DFL, signal.SIG_IGN],
+                                    ids=['sigint_default', 'sigint_ignored'])
+
+
+@INHERITED
+def test_a_second_interrupt_during_clean_up_is_ignored(sigint):
+    result = _run('spin', sigint)
     assert result.returncode == 0, result.stderr
     assert 'cleaned up' in result.stdout
     assert 'Traceback' not in result.stderr, result.stderr
 
 
-def test_an_interrupt_while_the_node_starts_ends_it_quietly():
-    result = _run('start')
+@INHERITED
+def test_an_interrupt_while_the_node_starts_ends_it_quietly(sigint):
+    result = _run('start', sigint)
     assert result.returncode == 0, result.stderr
     assert 'Traceback' not in result.stderr, result.stderr
     assert 'cleaned up' not in result.stdout

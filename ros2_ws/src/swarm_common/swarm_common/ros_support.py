@@ -56,10 +56,17 @@ def run_node(make_node: Callable[[], N], name: str, args=None,
     rclpy.init(args=args)
     try:
         node = make_node()
-    except BAD_INPUT as exc:
-        print(f'{name}: {_one_line(exc)}', file=sys.stderr)
-        rclpy.try_shutdown()
-        sys.exit(2)
+    except Exception as exc:
+        if not rclpy.ok():
+            # rclpy's SIGINT handler shut the context down while the node started (with
+            # SIGINT ignored by the parent, no KeyboardInterrupt follows): an interrupt.
+            _stop_interrupts()
+            sys.exit(0)
+        if isinstance(exc, BAD_INPUT):
+            print(f'{name}: {_one_line(exc)}', file=sys.stderr)
+            rclpy.try_shutdown()
+            sys.exit(2)
+        raise
     except KeyboardInterrupt:
         _stop_interrupts()
         rclpy.try_shutdown()
