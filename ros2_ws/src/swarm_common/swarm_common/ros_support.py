@@ -75,13 +75,16 @@ def run_node(make_node: Callable[[], N], name: str, args=None,
         rclpy.spin(node, executor=executor() if executor else None)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except RuntimeError as exc:
-        # A message taken while SIGINT tears the subscriptions down fails to convert
-        # (ros2/rclpy#848, seen when a launcher stops a run with the context still
-        # reported ok). Any other RuntimeError is real.
-        if 'Unable to convert call argument' not in str(exc):
-            raise
-        node.get_logger().warning(f'stopped while taking a message: {exc}')
+    except Exception as exc:
+        # A stop, not an error: rclpy's SIGINT handler shut the context down while the
+        # executor built its wait set (RCLError: the context is not valid; with SIGINT
+        # ignored by the parent no KeyboardInterrupt follows), or a message taken while
+        # SIGINT tears the subscriptions down failed to convert (ros2/rclpy#848, the
+        # context still reported ok). Anything else is real.
+        if rclpy.ok():
+            if 'Unable to convert call argument' not in str(exc):
+                raise
+            node.get_logger().warning(f'stopped while taking a message: {exc}')
     finally:
         _stop_interrupts()
         if stop is not None:
