@@ -1,0 +1,163 @@
+"""What the soak benchmark (benchmarks/soak.py) measures, as pure functions.
+
+Per process of a running swarm (the launcher and every descendant, found through
+/proc): proportional set size from ``/proc/PID/smaps_rollup`` (resident pages, each page
+shared by k processes counted 1/k times: forked agents share their imported modules)
+and CPU time from ``/proc/PID/stat``; the sim clock from the launcher's progress lines
+(``t=  123.4 s  rtf=...``) for the real-time factor; after the run, whether and when the
+swarm settled (thesis eq. 4.1 held for the hold window, ``swarm_sim.metrics``) after
+each shape change, replayed over the launcher's record.npz. No ROS import.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+import os
+import pathlib
+import re
+
+import numpy as np
+
+PROGRESS = re.compile(r't=\s*([0-9.]+) s\s+rtf=')
+
+
+def descendants(root: int) -> list[int]:
+    """``root`` and every process below it (children of children too), from /proc."""
+    parents: dict[int, list[int]] = {}
+    for entry in pathlib.Path('/proc').iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            ppid = int((entry / 'stat').read_text().rsplit(')', 1)[1].split()[1])
+        except (OSError, IndexError, ValueError):
+            continue
+        parents.setdefault(ppid, []).append(int(entry.name))
+    found, todo = [], [root]
+    while todo:
+        pid = todo.pop()
+        found.append(pid)
+        todo.extend(parents.get(pid, []))
+    return sorted(found)
+
+
+def label(pid: int) -> str:
+    """A short name of a process: the module it runs (``-m module``) or its program."""
+    try:
+        argv = pathlib.Path(f'/proc/{pid}/cmdline').read_bytes().decode(
+            errors='replace').split('\0')
+    except OSError:
+        return f'pid{pid}'
+    if '-m' in argv[:-1]:
+        name = argv[argv.index('-m') + 1].rsplit('.', 1)[-1]
+    else:
+        name = next((pathlib.Path(a).stem for a in argv[1:2] if a), pathlib.Path(argv[0]).stem)
+    # Forked agents keep the fork server's command line; their log file tells them apart.
+    return f'{name}[{pid}]'
+
+
+def pss_bytes(pid: int) -> int | None:
+    """The process's proportional set size, or None once it has gone."""
+    try:
+        text = pathlib.Path(f'/proc/{pid}/smaps_rollup').read_text()
+    except OSError:
+        return None
+    for line in text.splitlines():
+        if line.startswith('Pss:'):
+            return int(line.split()[1]) * 1024
+    return None
+
+
+def cpu_seconds(pid: int) -> float | None:
+    """User plus system CPU time of the process so far, or None once it has gone."""
+    try:
+        fields = pathlib.Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def sim_time(line: str) -> float | None:
+    """The sim time of a launcher progress line, else None."""
+    match = PROGRESS.search(line)
+    return float(match[1]) if match else None
+
+
+def growth_percent(wall: Sequence[float], pss: Sequence[float], warmup_s: float) -> float:
+    """PSS growth from the first sample at or after ``warmup_s`` to the mean of the last
+    three samples, in % of the former (the last three: one sample can catch a transient
+    allocation). NaN when the run has no sample after the warm-up."""
+    wall, pss = np.asarray(wall, dtype=float), np.asarray(pss, dtype=float)
+    after = np.flatnonzero(wall >= warmup_s)
+    if len(after) < 2:
+        return float('nan')
+    base = pss[after[0]]
+    return float((pss[after[-3:]].mean() - base) / base * 100.0)
+
+
+def rtf(sim: Sequence[float], wall: Sequence[float]) -> float:
+    """Real-time factor over the samples whose sim clock runs: sim seconds per wall
+    second from the first moving sample to the last."""
+    sim, wall = np.asarray(sim, dtype=float), np.asarray(wall, dtype=float)
+    moving = np.flatnonzero(sim > 0.0)
+    if len(moving) < 2 or wall[moving[-1]] <= wall[moving[0]]:
+        return float('nan')
+    return float((sim[moving[-1]] - sim[moving[0]]) / (wall[moving[-1]] - wall[moving[0]]))
+
+
+def settling_per_change(record: dict, change_times: Sequence[float], shapes: Sequence,
+                        hold_s: float) -> list[dict]:
+    """For each shape in force from ``change_times[k]`` (sim s) until the next change or
+    the end of the record: settled (eq. 4.1 held ``hold_s`` before the segment ended)
+    and the settling time since the change (``swarm_sim.metrics.settle_from_record``)."""
+    from swarm_sim.metrics import settle_from_record
+
+    times = np.asarray(record['times'], dtype=float)
+    ends = list(change_times[1:]) + [float('inf')]
+    out = []
+    for begin, end, shape in zip(change_times, ends, shapes):
+        seg = np.flatnonzero((times >= begin) & (times < end))
+        entry = {'time': float(begin), 'shape': shape.name, 'settled': False,
+                 'settling_time': None, 'recorded_until': None}
+        if len(seg) >= 2:
+            result = settle_from_record(
+                times[seg], np.nan_to_num(np.asarray(record['positions'])[seg]),
+                np.asarray(record['velocities'])[seg], shape,
+                np.asarray(record['alive'])[seg], hold_s)
+            entry.update(settled=bool(result['settled']),
+                         recorded_until=float(times[seg[-1]]),
+                         settling_time=None if result['settling_time'] is None else
+                         float(times[seg[0]] - begin + result['settling_time']))
+        out.append(entry)
+    return out
+
+
+def plot(path: pathlib.Path, samples: list[dict], change_walls: Sequence[float]) -> None:
+    """PSS per process and in total, CPU and real-time factor against wall time, with
+    the shape changes marked."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    wall = np.array([s['wall'] for s in samples]) / 60.0
+    fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
+    total = np.array([sum(s['pss'].values()) for s in samples]) / 2**20
+    axes[0].plot(wall, total, 'k', label='total')
+    names = sorted({n for s in samples for n in s['pss']},
+                   key=lambda n: -max(s['pss'].get(n, 0) for s in samples))
+    for name in names[:6]:
+        axes[0].plot(wall, [s['pss'].get(name, np.nan) / 2**20 for s in samples], lw=0.8,
+                     label=name)
+    axes[0].set_ylabel('PSS (MiB)')
+    axes[0].legend(fontsize=7, loc='center right')
+    axes[1].plot(wall, [s['cpu_cores'] for s in samples])
+    axes[1].set_ylabel('CPU (cores)')
+    axes[2].plot(wall, [s['rtf'] for s in samples])
+    axes[2].set_ylabel('real-time factor')
+    axes[2].set_xlabel('wall time (min)')
+    for ax in axes:
+        for t in change_walls:
+            ax.axvline(t / 60.0, color='grey', ls=':', lw=0.8)
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
