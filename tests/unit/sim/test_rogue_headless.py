@@ -34,7 +34,7 @@ def _run(auth: bool, rogue: bool) -> tuple[HeadlessSwarm, dict]:
                         settle_hold_s=50.0, removals=[(40.0, REMOVED)], auth=auth)
     swarm = HeadlessSwarm(scenario)
     if rogue:
-        scenario.rogues = [ForgedAdverts(swarm.ids, source=swarm.ids[1], start_s=5.0,
+        scenario.rogues = [ForgedAdverts(agent_ids=swarm.ids, source=swarm.ids[1], start_s=5.0,
                                            trailer=auth)]
     record = swarm.run()
     return swarm, record

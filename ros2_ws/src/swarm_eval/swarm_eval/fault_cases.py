@@ -1,8 +1,14 @@
 """The cases of the fault study and what each does when (issue 10).
 
 A case is ``{'name', 'kind', 'value'}``; its fault plan (``fault_plan``) lists removals
-and run-time medium settings (``swarm_sim.medium.RUNTIME_SETTINGS``) with their times,
-for the headless swarm (``configure_fault``) and the ROS launcher alike.
+and run-time settings (``swarm_sim.medium.RUNTIME_SETTINGS``) with their times, for the
+headless swarm (``configure_fault``) and the ROS launcher alike. A new kind of case is
+one more block in ``fault_cases`` and one more branch in ``fault_plan``.
+
+Rogue cases (``rogue_KIND``, ``swarm_sim.rogue.ROGUE_KINDS``) put a transmitter without
+the key on the radio from t = 0: the setting ``rogue`` (sim_node's parameter; headless,
+``Scenario.rogues`` gets the same rogue class). Its frames carry a trailer when the
+swarm authenticates (``config['auth']``, ``--no-auth`` turns it off to show the damage).
 """
 
 from __future__ import annotations
@@ -17,13 +23,16 @@ import numpy as np
 from swarm_eval.scenario import build_scenario, ScenarioSpec
 from swarm_sim.headless import HeadlessSwarm, ScenarioError
 from swarm_sim.medium import apply_setting
+from swarm_sim.rogue import make_rogue, ROGUE_KINDS
 
 LOSSES = (0, 10, 20, 30, 50)
 KILLS = (10, 30)
 RANGES = (12.0, 8.0, 5.0, 3.0)
-QUICK_CASES = ('loss_0', 'loss_30', 'kill_30', 'beacons_one', 'range_2', 'obstacle')
+ROGUE_CASES = tuple(f'rogue_{k}' for k in ROGUE_KINDS)
+QUICK_CASES = ('loss_0', 'loss_30', 'kill_30', 'beacons_one', 'range_2', 'obstacle',
+               *ROGUE_CASES)
 ROS_CASES = ('loss_0', 'loss_20', 'loss_50', 'kill_30', 'beacons_half', 'range_2',
-             'obstacle')
+             'obstacle', 'rogue_adverts', 'rogue_replay')
 
 
 def fault_cases(ranges: tuple[float, ...] = RANGES) -> list[dict[str, Any]]:
@@ -35,6 +44,7 @@ def fault_cases(ranges: tuple[float, ...] = RANGES) -> list[dict[str, Any]]:
     cases.append({'name': 'beacons_half', 'kind': 'beacons', 'value': 0.5})
     cases += [{'name': f'range_{r:g}', 'kind': 'range', 'value': float(r)} for r in ranges]
     cases.append({'name': 'obstacle', 'kind': 'obstacle', 'value': 0.0})
+    cases += [{'name': f'rogue_{k}', 'kind': 'rogue', 'value': k} for k in ROGUE_KINDS]
     return cases
 
 
@@ -46,6 +56,7 @@ def fault_plan(case: dict, config: dict, seed: int, ids: list[int], beacon_ids: 
     ``removals``: [(time, [agent ids])]; ``settings``: [(time, name, value)] with the
     names of ``swarm_sim.medium.RUNTIME_SETTINGS`` (sim_node's run-time parameters);
     ``first``/``last``: time of the first fault and of the end of the last one.
+    A rogue transmits from t = 0 (setting ``rogue``: 1 + its index in ROGUE_KINDS).
     """
     kind, value = case['kind'], case['value']
     t_fault = float(config['fault_time'])
@@ -70,6 +81,11 @@ def fault_plan(case: dict, config: dict, seed: int, ids: list[int], beacon_ids: 
         speed = float(config['wall_speed'])
         plan.update(settings=[(t_fault, 'radio_wall_speed_mps', speed)],
                     last=t_fault + 2.0 * half_size / speed)
+    elif kind == 'rogue':
+        if value not in ROGUE_KINDS:
+            raise ScenarioError(f'unknown rogue {value!r}; use one of {ROGUE_KINDS}')
+        plan.update(settings=[(0.0, 'rogue', float(ROGUE_KINDS.index(value) + 1))],
+                    first=0.0, last=0.0)
     else:
         raise ScenarioError(f'unknown fault kind {kind!r}')
     return plan
@@ -92,7 +108,10 @@ def configure_fault(swarm: HeadlessSwarm, case: dict, config: dict, seed: int
     sc.removals = plan['removals']
     events = []
     for t, name, value in plan['settings']:
-        if t <= 0.0:
+        if name == 'rogue':   # the world hands it the deliveries (swarm_sim.world_model)
+            sc.rogues = [make_rogue(ROGUE_KINDS[int(value) - 1], swarm.ids,
+                                    trailer=sc.auth, start_s=t)]
+        elif t <= 0.0:
             apply_setting(swarm.medium, name, value, 0.0, sc.half_size)
         else:
             events.append((t, _setting_event(name, value)))
@@ -112,7 +131,8 @@ def build_swarm(case: dict, config: dict, seed: int) -> HeadlessSwarm:
     """The case's swarm: the evaluator's scenario with the study's settings."""
     spec = ScenarioSpec(agents=int(config['agents']), beacons=int(config['beacons']),
                         shape=config['shape'], shape_scale=float(config['shape_scale']),
-                        duration=float(config['duration']), method=config['method'])
+                        duration=float(config['duration']), method=config['method'],
+                        auth=bool(config.get('auth', True)))
     scenario = build_scenario(spec, seed)
     scenario.half_size = config['half_size']
     return HeadlessSwarm(scenario)

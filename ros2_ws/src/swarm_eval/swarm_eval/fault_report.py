@@ -46,8 +46,25 @@ def summarise(rows: list[dict], cases: list[dict]) -> dict[str, dict[str, Any]]:
         summary['agents'] = max(r.get('agents', 0) for r in group)
         # ROS runs: runs in which a node died (or the run timed out / left no results)
         summary['crashed'] = sum(bool(r.get('crashed')) for r in group)
+        summary['frames_rejected'] = rejected_means(group)
         out[case['name']] = summary
     return out
+
+
+def rejected_means(rows: list[dict]) -> dict[str, float] | None:
+    """Frames rejected per seed, by kind (``frame_auth.REJECTIONS``); None when no row
+    counted them (a ROS run whose logs held no count)."""
+    counted = [r['frames_rejected'] for r in rows if r.get('frames_rejected') is not None]
+    if not counted:
+        return None
+    kinds = sorted({k for c in counted for k in c})
+    return {k: float(np.mean([c.get(k, 0) for c in counted])) for k in kinds}
+
+
+def _fmt_rejected(counts: dict[str, float] | None) -> str:
+    if counts is None:
+        return 'n/a'
+    return ', '.join(f'{k.removeprefix("auth_")} {v:.0f}' for k, v in counts.items()) or '0'
 
 
 def _fmt(value: Any, digits: int = 2) -> str:
@@ -61,14 +78,15 @@ def _fmt(value: Any, digits: int = 2) -> str:
 
 
 def markdown_table(summary: dict[str, dict[str, Any]], crashes: bool = False) -> str:
-    """One row per case: coverage, agreement, recovery, collisions, DSDV, target.
+    """One row per case: coverage, agreement, recovery, collisions, DSDV, frames rejected
+    by kind (mean per seed), target.
 
     ``crashes`` adds the column of runs in which a node died (ROS runs).
     """
     head = ('| Case | inside | goals claimed (reached) | eps_t | eps_g | agree (after fault) | '
             'agree (end) | dup claims | settled | recovery [s] | min sep (after fault) | '
             'max hops / N | loops | components | beacons (min heard) | '
-            + ('crashed | ' if crashes else '') + 'passed |')
+            'rejected frames | ' + ('crashed | ' if crashes else '') + 'passed |')
     lines = [head, '|' + '---|' * (head.count('|') - 1)]
     for name, s in summary.items():
         seeds = s['seeds']
@@ -83,6 +101,7 @@ def markdown_table(summary: dict[str, dict[str, Any]], crashes: bool = False) ->
             f'{s["max_hops_seen"]} / {s["agents"]} | {_fmt(s["routing_loops"], 1)} | '
             f'{_fmt(s["max_components_after_fault"], 1)} | '
             f'{_fmt(s["beacons_alive"], 1)} ({_fmt(s["min_beacons_heard"], 1)}) | '
+            f'{_fmt_rejected(s.get("frames_rejected"))} | '
             + (f'{s["crashed"]}/{seeds} | ' if crashes else '') + f'{s["passed"]}/{seeds} |')
     return '\n'.join(lines) + '\n'
 

@@ -1,13 +1,17 @@
 """The fault study through the full ROS system (sim_node, mission_node, composed agents):
 one ``scripts/launch_swarm.py`` run per (case, seed), faults by its --remove and
---set-sim, each run's row read back from its metrics.json, record.npz and logs."""
+--set-sim (a rogue transmitter too: sim_node's ``rogue``), each run's row read back from
+its metrics.json, record.npz and logs (the agents' status lines give the frames they
+rejected, by kind)."""
 
 from __future__ import annotations
 
 import argparse
+import ast
 import json
 import math
 import pathlib
+import re
 import sys
 from typing import Any
 
@@ -41,6 +45,8 @@ ROOT = repo_root()
 LAUNCH = ROOT / 'scripts' / 'launch_swarm.py'
 ROUTE_FRESH_S = 5.0     # a route table older than this (sim s) is of a dead agent
 NO_ROUTE = 255          # swarm_msgs/RouteEntry.INFINITE_HOPS, also "no entry"
+# An agent's status line (AgentBrain.status_line, logged every status_log_period_s).
+_STATUS = re.compile(r'agent_(\d+)\]: .*; rejected frames (\{[^}]*\})')
 
 
 def ros_config(args: argparse.Namespace) -> dict[str, Any]:
@@ -125,6 +131,27 @@ def _crashed_nodes(run_dir: pathlib.Path, metrics: dict) -> tuple[list[str], lis
     return crashed, tracebacks
 
 
+def rejected_from_logs(run_dir: pathlib.Path) -> dict[str, int] | None:
+    """Frames the agents rejected, by kind: the sum over agents of the counts in each
+    one's last status line (its counts are totals since it started); None without any."""
+    last: dict[int, dict[str, int]] = {}
+    for log in sorted((run_dir / 'logs').glob('*.log')):
+        for line in log.read_text(encoding='utf-8', errors='replace').splitlines():
+            match = _STATUS.search(line)
+            if match:
+                try:
+                    last[int(match[1])] = dict(ast.literal_eval(match[2]))
+                except (ValueError, SyntaxError):
+                    continue
+    if not last:
+        return None
+    total: dict[str, int] = {}
+    for counts in last.values():
+        for kind, n in counts.items():
+            total[kind] = total.get(kind, 0) + int(n)
+    return dict(sorted(total.items()))
+
+
 def route_columns(data, record, ids: list[int], first: float) -> dict[str, Any]:
     """DSDV health from the launcher's route samples: hops, loops, stale routes."""
     times = np.asarray(data['route_times'], dtype=float)
@@ -164,7 +191,8 @@ def link_columns(record, ids: list[int], is_beacon: np.ndarray, settings: list, 
         t = float(record.times[k])
         while pending and pending[0][0] <= t:
             when, name, value = pending.pop(0)
-            apply_setting(medium, name, value, when, config['half_size'])
+            if name != 'rogue':   # the world's, not the medium's
+                apply_setting(medium, name, value, when, config['half_size'])
         medium.move_wall(t)
         living = np.flatnonzero(record.alive[k])
         medium.update_positions([ids[i] for i in living], record.positions[k][living])
@@ -242,6 +270,7 @@ def ros_row(case: dict, config: dict, seed: int, run_dir: pathlib.Path, plan: di
         'removals': plan['removals'],
         'medium': json.loads(medium_file.read_text()) if medium_file.exists() else None,
         'real_time_factor': metrics.get('real_time_factor'),
+        'frames_rejected': rejected_from_logs(run_dir),
         'duration': metrics.get('duration'),
     })
     return judge(row)

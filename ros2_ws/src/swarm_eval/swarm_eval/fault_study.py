@@ -10,8 +10,14 @@ faults, each over ``--seeds`` seeds:
   beacons_half  half of the beacons removed at the fault time
   range_R       radio range cut from 25 m to R m at the fault time (down to a partition)
   obstacle      a radio-opaque wall sweeping through the formation (links cut, not bodies)
+  rogue_KIND    a transmitter without the key from t = 0 (``swarm_sim.rogue``): forged
+                adverts (metric 1), forged cost rows, replays, a flood at 10x the rate
 
-and reports per trial: coverage (``fraction_inside``, share of the final goals claimed by
+Radio frames are authenticated (the default, as on the robots); ``--no-auth`` runs the
+cases without, to show what the rogues do then.
+
+and reports per trial: the frames the receivers rejected, by kind
+(``frame_auth.REJECTIONS``), coverage (``fraction_inside``, share of the final goals claimed by
 a living agent, share with an agent of their type truly within ``GOAL_TOLERANCE_M``,
 epsilon_t/epsilon_g), agreement of the
 surviving agents (``assignment_agreement`` over the run and after the fault, at the end,
@@ -90,6 +96,7 @@ def run_case(case: dict, config: dict, seed: int) -> dict[str, Any]:
         'beacons_alive': beacons_alive, 'min_beacons_heard': min_beacons_heard(swarm),
         'final_modes_normal': m['final_modes_normal'],
         'rms_localization_error': m['rms_localization_error'],
+        'auth': m['auth'], 'frames_rejected': m['frames_rejected'],
         'medium': m['medium'], 'events': record.events,
         'duration': m['duration'], 'wall_seconds': m['wall_seconds'],
     }
@@ -122,6 +129,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument('--ranges', type=float, nargs='+', default=None,
                         help='reduced radio ranges [m] (default 12 8 5 3)')
     parser.add_argument('--cases', default='', help='comma-separated subset of case names')
+    parser.add_argument('--no-auth', dest='auth', action='store_false',
+                        help='unauthenticated radio frames (headless only; to show what '
+                        'the rogue cases do without authentication)')
     parser.add_argument('--quick', action='store_true',
                         help='tiny swarm and short trials (a test, seconds)')
     parser.add_argument('--ros', action='store_true',
@@ -145,7 +155,7 @@ def study_config(args: argparse.Namespace) -> dict[str, Any]:
                            'fault_time', 'duration', 'observe'))
     base.update(shape=args.shape or 'circle_314', method=args.method,
                 fault_window=args.fault_window, seed=args.seed, workers=args.workers,
-                quick=args.quick)
+                quick=args.quick, auth=args.auth)
     if args.quick:
         base['fault_window'] = min(base['fault_window'], 10.0)
     return base
@@ -155,6 +165,10 @@ def main(argv: list[str] | None = None) -> int:
     """``fault_study``: run the cases (headless, or --ros), write faults.*."""
     args = parse_args(argv)
     if args.ros:
+        if not args.auth:
+            print('fault_study.py: --no-auth is for the headless study (launch_swarm runs '
+                  'the agents with authenticated radio frames)', file=sys.stderr)
+            return 2
         return run_ros_study(args, argv)
     config = study_config(args)
     cases = select_cases(fault_cases(config['ranges']), args.cases,

@@ -20,7 +20,8 @@ Radio frames are authenticated as on the robots (``swarm_agent.frame_auth``) und
 ``swarm_key_file`` (default: the development key); ``auth=False`` only for the
 with/without comparison. The frames the brains and the mission's radio rejected, by kind,
 are in the metrics (``frames_rejected``). ``rogues`` are transmitters without the key
-(``swarm_sim.rogue``) heard by every robot and the mission.
+(``swarm_sim.rogue``): the world hands them every delivery and their frames to every
+living robot (``World.rogues``); the mission's radio hears them too.
 """
 
 from __future__ import annotations
@@ -91,8 +92,8 @@ class Scenario:
     remesh: str = 'incremental'           # bubble packing on a changed shape (MissionConfig)
     auth: bool = True                     # authenticated radio frames (frame_auth)
     swarm_key_file: str | None = None     # None: the development key (config/)
-    # Rogue transmitters (swarm_sim.rogue): ``frames(t)`` at every control step, heard by
-    # every robot and the mission's radio.
+    # Rogue transmitters (swarm_sim.rogue): they overhear every delivery and their frames
+    # reach every living robot and the mission's radio.
     rogues: Sequence = ()
 
     def validate(self) -> None:
@@ -241,6 +242,7 @@ class HeadlessSwarm:
             'digests', 'localized', 'min_separation')}
         forces = np.zeros((self.n, 2))
         world.refresh_links()   # settings applied before the run (a loss) hold from t = 0
+        world.rogues = list(sc.rogues)
         for _ in range(int(round(sc.duration_s / sc.control_dt)) + 1):
             t = world.t
             world.run_due(t)
@@ -258,8 +260,8 @@ class HeadlessSwarm:
             world.shape = self.mission.shape
             readings = world.sense(t)
             self._feed(readings)
-            for rogue in sc.rogues:
-                self._hear_rogue(t, rogue.frames(t))
+            for packet in readings.rogue or ():
+                self.mission_radio.on_packet(t, packet)
             if readings.truth is not None:
                 self._sample(readings, rec)
                 if progress is not None:
@@ -290,14 +292,6 @@ class HeadlessSwarm:
                 brains[i].on_proximity(t, *readings.proximity.of(i))
         for i, fix, std in readings.gps or ():
             brains[i].on_gps(t, fix, std)
-
-    def _hear_rogue(self, t: float, packets: list) -> None:
-        """A rogue's frames reach every living brain and the mission's radio."""
-        for packet in packets:
-            for brain in self.brains:
-                if brain is not None:
-                    brain.on_packet(t, packet)
-            self.mission_radio.on_packet(t, packet)
 
     def frames_rejected(self) -> dict[str, int]:
         """Frames the brains (living and removed) and the mission's radio rejected, by

@@ -27,6 +27,7 @@ from shapely.geometry import box, Polygon
 
 from swarm_agent.packet import BROADCAST, Packet
 from swarm_common.parameters import tunable
+from swarm_sim.rogue import check_rogue
 
 FRAME_OVERHEAD_BYTES = 18  # XBee API frame + 802.15.4 header around the payload
 WALL_THICKNESS_M = 1.0
@@ -57,8 +58,11 @@ def check_wall_speed(speed: float) -> float:
 
 
 # sim_node parameters that change the medium at run time, with the check of their value.
+# 'rogue' (a transmitter without the key, ``swarm_sim.rogue``) is the world's, not the
+# medium's: ``World.apply_setting`` takes it.
 RUNTIME_SETTINGS: dict[str, Callable[[float], float]] = {
-    'loss': check_loss, 'radio_range_m': check_range, 'radio_wall_speed_mps': check_wall_speed}
+    'loss': check_loss, 'radio_range_m': check_range, 'radio_wall_speed_mps': check_wall_speed,
+    'rogue': check_rogue}
 
 
 def wall_polygon(x: float, half_length: float, thickness: float = WALL_THICKNESS_M) -> Polygon:

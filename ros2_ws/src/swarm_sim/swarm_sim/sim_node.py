@@ -3,7 +3,7 @@
 ROS wiring of the world model (``swarm_sim.world_model.World``, as the headless
 evaluator runs it): parameters (generated from
 ``swarm_sim.sim_parameters.SimParameters``, the radio medium's ``medium.*`` included;
-read-only but ``loss``, ``radio_range_m``, ``radio_wall_speed_mps`` and
+read-only but ``loss``, ``radio_range_m``, ``radio_wall_speed_mps``, ``rogue`` and
 ``real_time_factor``, which the on-set callback applies), commands and faults in,
 readings out as messages (``swarm_sim.conversions``), ``/clock``. Paced by
 ``swarm_sim.pacing`` (``real_time_factor``, ``max_agent_lag_s`` behind the slowest
@@ -30,8 +30,10 @@ Topics (K: a robot id; per-robot topics have no default QoS event handlers,
   faults     ``swarm/kill``, ``swarm/radio_off``, ``swarm/radio_on`` (std_msgs/
              Int32MultiArray of robot ids), ``swarm/move_obstacle`` (std_msgs/
              Float64MultiArray ``[k, dx, dy]``), as ``World.inject`` applies them; run-time
-             parameters ``loss``, ``radio_range_m``, ``radio_wall_speed_mps``
-             (``World.apply_setting``; a bad value is refused with the reason).
+             parameters ``loss``, ``radio_range_m``, ``radio_wall_speed_mps``, ``rogue`` (a
+             transmitter without the key, ``swarm_sim.rogue``: its frames join the
+             deliveries on ``agent_K/radio/rx``) (``World.apply_setting``; a bad value is
+             refused with the reason).
 """
 
 from __future__ import annotations

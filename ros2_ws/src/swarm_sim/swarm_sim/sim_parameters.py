@@ -7,7 +7,7 @@ runs), with the radio medium's own configuration nested (``medium.latency_s``,
 ``medium.bandwidth_bps``, ... generated from ``swarm_sim.medium.MediumConfig``). sim_node
 declares one ROS parameter per spec of ``SIM_PARAMETERS`` (read-only but for the live
 ones, which its on-set callback applies: ``loss``, ``radio_range_m``,
-``radio_wall_speed_mps``, ``real_time_factor``); ``world_from_parameters`` checks the
+``radio_wall_speed_mps``, ``rogue``, ``real_time_factor``); ``world_from_parameters`` checks the
 values against their specs and builds the world. No YAML mirrors the defaults: ``ros2
 param dump /sim`` lists them, ``ros2 param describe`` explains each.
 """
@@ -25,6 +25,7 @@ from swarm_common.robot_types import load_robot_types, RobotType
 from swarm_common.shapes import load_shape
 from swarm_sim.medium import MediumConfig, RadioMedium
 from swarm_sim.physics import make_backend
+from swarm_sim.rogue import check_rogue
 from swarm_sim.world_model import World, WorldConfig
 
 MAX_RATE_HZ = 10_000.0
@@ -97,6 +98,13 @@ class SimParameters:
                                                'workspace along +x from when set; 0: none '
                                                '(settable at run time)',
                                           low=0.0, high=1000.0, live=True)
+    rogue: float = tunable(0.0, 'A rogue transmitter without the swarm key from when set '
+                                '(swarm_sim.rogue): 0 none, 1 forged adverts, 2 forged cost '
+                                'rows, 3 replays, 4 a flood at 10x the frame rate (settable '
+                                'at run time)', low=0.0, high=4.0, live=True)
+    rogue_trailer: bool = tunable(True, "The rogue's frames end with an authentication "
+                                        'trailer (a tag it cannot compute): the agents '
+                                        'authenticate (their auth parameter)')
     half_size: float = tunable(50.0, 'Workspace half width (m)', low=0.1, high=1e5)
     terrain: str = tunable('rough', 'pybullet terrain: rough or flat')
     seed: int = tunable(0, 'Seed of the noise generators and the terrain',
@@ -152,4 +160,7 @@ def world_from_parameters(p: dict) -> tuple[list[RobotSpec], dict[int, RobotType
                            p['terrain'], p['seed'], p['gui'], p['physics_rate_hz'])
     medium = RadioMedium(dataclasses.replace(config.medium, loss=p['loss'],
                                              range_m=p['radio_range_m']), rng, obstacles)
-    return fleet, types, World(fleet, types, backend, world_config(p), rng, obstacles, medium)
+    world = World(fleet, types, backend, world_config(p), rng, obstacles, medium)
+    world.rogue_trailer = bool(p['rogue_trailer'])
+    world.set_rogue(check_rogue(p['rogue']))
+    return fleet, types, world

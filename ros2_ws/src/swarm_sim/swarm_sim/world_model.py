@@ -14,8 +14,10 @@
   its living beacon neighbours (beacons have GPS; docs/localization.md says why they do
   not fuse ranges to each other), the beacons' GPS, the proximity scans;
 - faults: a robot removed (radio and body), its radio off and on, an obstacle moved
-  (body and radio shadow), the run-time medium settings of ``RUNTIME_SETTINGS``; and
-  scheduled events, each a commanded change for the settled condition;
+  (body and radio shadow), the run-time medium settings of ``RUNTIME_SETTINGS``, a
+  rogue transmitter (``rogues``, ``swarm_sim.rogue``: it overhears every delivery and
+  its frames reach every living robot with the next deliveries); and scheduled events,
+  each a commanded change for the settled condition;
 - metrics state: the closest approach of coverage circles at every step
   (``SeparationTracker``, with the backend's body contacts), the settled condition of
   eq. 4.1 with its hold window (``SettleTracker``, once a shape is given), and a truth
@@ -54,6 +56,7 @@ from swarm_common.shapes import Shape
 from swarm_sim.medium import apply_setting, RadioMedium, RUNTIME_SETTINGS
 from swarm_sim.metrics import SeparationTracker, SETTLE_HOLD_S, settled_now, SettleTracker
 from swarm_sim.physics import PhysicsBackend
+from swarm_sim.rogue import make_rogue, ROGUE_KINDS
 from swarm_sim.sensors import GpsModel, ImuModel, ProximityModel, ProximityScan
 
 Frames = list[tuple[float, Packet, list[int]]]   # (delivery time, frame, receiver ids)
@@ -112,6 +115,7 @@ class Readings:
     t: float
     living: np.ndarray                                     # fleet indices of the living
     rx: Frames | None = None                               # deliveries since the last batch
+    rogue: list[Packet] | None = None                      # rogue frames sent now (in rx)
     imu: np.ndarray | None = None                          # (N, 2) m/s^2, map frame
     ranges: list[tuple[int, list[tuple[int, float, float]]]] | None = None
     proximity: ProximityScan | None = None
@@ -170,6 +174,8 @@ class World:
             ('record', config.record_period_s))}
         self._next = dict.fromkeys(self._every, 1)   # the first report after one step
         self._rx: Frames = []
+        self.rogues: list = []                   # swarm_sim.rogue transmitters
+        self.rogue_trailer = True                # the robots authenticate (set_rogue)
         self._events: list[_Event] = []
         self._event_seq = 0
         self.medium.update_positions(self.ids, self.backend.positions())
@@ -264,8 +270,17 @@ class World:
         the workspace from x = -half_size, 0 removes it). ValueError naming an unknown
         setting or a bad value."""
         check = RUNTIME_SETTINGS.get(name)
+        if name == 'rogue':
+            self.set_rogue(check(value))
+            return
         apply_setting(self.medium, name, check(value) if check else value, self.t,
                       self.config.half_size)
+
+    def set_rogue(self, code: float) -> None:
+        """From now a rogue of ``swarm_sim.rogue.ROGUE_KINDS[code - 1]`` transmits (0:
+        none), its frames sealed with a bad tag when ``rogue_trailer``."""
+        self.rogues = [make_rogue(ROGUE_KINDS[int(code) - 1], self.ids, self.rogue_trailer,
+                                  self.t)] if code else []
 
     # -- scheduled events and the settled condition
     def schedule(self, t: float, action: Callable[[float], None]) -> None:
@@ -327,8 +342,10 @@ class World:
             self.settle.update(t, settled_now(self.shape, positions,
                                               self.backend.velocities(), alive))
         out = Readings(t, np.flatnonzero(alive))
-        self._rx.extend((t, packet, receivers)
-                        for packet, receivers in self.medium.deliver_grouped(t))
+        delivered = self.medium.deliver_grouped(t)
+        self._rx.extend((t, packet, receivers) for packet, receivers in delivered)
+        if self.rogues:
+            out.rogue = self._rogue(t, delivered, out.living)
         if self._due('radio'):
             out.rx, self._rx = self._rx, []
         if self._due('imu'):
@@ -342,7 +359,7 @@ class World:
             out.imu = self.imu.measure(mean)
         if self._due('range'):
             beacons = [self.ids[i] for i in np.flatnonzero(alive & self.is_beacon)]
-            out.ranges = [(int(i), self.medium.toa_ranges(self.ids[i], beacons))
+            out.ranges = [(int(i), self.medium.toa_ranges(self.ids[i], beacons, peers=True))
                           for i in out.living if not self.is_beacon[i]]
         if self.proximity is not None and self._due('proximity'):
             out.proximity = self.proximity.measure(positions, self.radii, alive)
@@ -354,6 +371,19 @@ class World:
                 t, np.array(positions, dtype=float), np.array(self.backend.velocities()),
                 self.backend.yaws(), alive.copy(), self.separation.take_interval_min())
         return out
+
+    def _rogue(self, t: float, delivered, living: np.ndarray) -> list[Packet]:
+        """The rogues overhear this report's deliveries; their frames go to every living
+        robot with them."""
+        frames = []
+        for rogue in self.rogues:
+            for packet, _ in delivered:
+                rogue.overhear(t, packet)
+            frames += rogue.frames(t)
+        if frames:
+            receivers = [self.ids[i] for i in living]
+            self._rx.extend((t, packet, receivers) for packet in frames)
+        return frames
 
     def links_by_index(self) -> np.ndarray:
         """The medium's link graph (it holds the living robots) as an (N, N) bool matrix."""
