@@ -15,6 +15,14 @@ give themselves (``agent_K`` too). A run with a ``bag`` path starts the
 for it to hear ``swarm/truth`` before t = 0, so the bag starts with the run. Pure: no
 ROS import.
 
+Agent processes and the mission node are respawned when they exit on their own (a
+crash): after ``RESPAWN_DELAY_S``, at most ``RESPAWN_RETRIES`` times, by launch_ros
+(``respawn``, ``respawn_delay``, ``respawn_max_retries``) and by the launcher alike. A
+restarted agent rejoins the mesh with DSDV sequence numbers above its old ones
+(``swarm_agent.dsdv.boot_sequence``) and gets the shape and goals again from their
+transient-local topics; a restarted mission node publishes them again. The simulator is
+never respawned: it owns the clock and the record, and its exit ends the run.
+
 Names are relative (``agent_K/state``, ``radio/tx``, ``swarm/goals``), so a run with a
 ``namespace`` puts every node of the plan in it and two swarms share one ROS domain
 without crosstalk. The ROS-global names the nodes use as ROS tools expect, ``/clock``
@@ -35,6 +43,8 @@ MIN_BEACONS = 3               # trilateration needs three anchors (thesis 3.2)
 BAG_NAME = 'run.mcap'         # the bag of a recorded run, in its output folder
 # Absolute names remapped into a run's namespace (module docstring).
 GLOBAL_REMAPPINGS = (('/clock', 'clock'), ('/tf', 'tf'), ('/tf_static', 'tf_static'))
+RESPAWN_DELAY_S = 1.0         # wait before a crashed process is started again
+RESPAWN_RETRIES = 3           # restarts of one process at most (then its exit is a crash)
 
 
 class NamespaceError(ValueError):
@@ -61,7 +71,8 @@ class NodeSpec:
     ``name`` None keeps the names the process gives its nodes (a composed process holds
     one node per robot: a name would rename them all). ``process`` names the process and
     its log file; ``fork`` starts it from a server that has imported the module once
-    (swarm_agent.prefork).
+    (swarm_agent.prefork); ``respawn``: started again when it exits on its own (module
+    docstring).
     """
 
     package: str
@@ -73,6 +84,7 @@ class NodeSpec:
     params_files: tuple[str, ...] = ()
     remappings: tuple[tuple[str, str], ...] = ()
     fork: bool = False
+    respawn: bool = False
 
     @property
     def module(self) -> str:
@@ -183,7 +195,8 @@ def world_nodes(run: SwarmRun) -> list[NodeSpec]:
         NodeSpec('swarm_sim', 'sim_node', 'sim', name='sim', parameters=sim,
                  params_files=run.params_files, **scoped(run)),
         NodeSpec('swarm_mission', 'mission_node', 'mission', name='mission',
-                 parameters=mission, params_files=run.params_files, **scoped(run))]
+                 parameters=mission, params_files=run.params_files, respawn=True,
+                 **scoped(run))]
 
 
 def agent_nodes(run: SwarmRun, fleet: Sequence, counts: Mapping[int, int],
@@ -204,9 +217,9 @@ def agent_nodes(run: SwarmRun, fleet: Sequence, counts: Mapping[int, int],
         if len(local) < len(all_ids):
             params['agent_ids'] = sorted(local)
         return [NodeSpec('swarm_agent', 'composed_node', 'agents', parameters=params,
-                         params_files=run.params_files, **scoped(run))]
+                         params_files=run.params_files, respawn=True, **scoped(run))]
     return [NodeSpec('swarm_agent', 'agent_node', f'agent_{r.id}', name=f'agent_{r.id}',
-                     fork=True, params_files=run.params_files, **scoped(run),
+                     fork=True, params_files=run.params_files, respawn=True, **scoped(run),
                      parameters={
                          'agent_id': r.id, 'agent_type': r.type, 'is_beacon': r.is_beacon,
                          'initial_x': r.x, 'initial_y': r.y, 'method': run.method,
@@ -257,4 +270,7 @@ def node_kwargs(spec: NodeSpec) -> dict[str, Any]:
         kwargs['name'] = spec.name
     if spec.namespace:
         kwargs['namespace'] = spec.namespace
+    if spec.respawn:
+        kwargs.update(respawn=True, respawn_delay=RESPAWN_DELAY_S,
+                      respawn_max_retries=RESPAWN_RETRIES)
     return kwargs

@@ -4,6 +4,11 @@
 group with its log in ``log_dir`` (exec'd, or forked from a server that has imported the
 node module once: swarm_agent.prefork), tells which one crashed, reads their CPU time
 and memory from /proc, and stops them all (SIGINT, then SIGKILL after a grace period).
+A process whose plan entry has ``respawn`` (the agents, the mission node) and that exits
+on its own is started again ``RESPAWN_DELAY_S`` later, at most ``RESPAWN_RETRIES`` times,
+with one line on stderr each time; its earlier log is kept as ``NAME.runK.log``. Only a
+process out of restarts counts as crashed. Processes the run kills (``kill``: a removed
+robot) and stopped ones are never restarted.
 Every child dies with the launcher however the launcher dies (``die_with_parent``), so
 no orphans are left.
 """
@@ -19,7 +24,12 @@ import sys
 import time
 
 from swarm_agent.prefork import die_with_parent, ForkedProcess, ForkServer
-from swarm_bringup.launch_plan import NodeSpec, ros_arguments
+from swarm_bringup.launch_plan import (
+    NodeSpec,
+    RESPAWN_DELAY_S,
+    RESPAWN_RETRIES,
+    ros_arguments,
+)
 
 
 def stop_groups(procs: Iterable[subprocess.Popen], grace: float) -> None:
@@ -55,6 +65,9 @@ class Children:
         self.procs: dict[str, subprocess.Popen | ForkedProcess] = {}
         self.expected_exit: set[str] = set()
         self._forks: ForkServer | None = None
+        self.specs: dict[str, NodeSpec] = {}
+        self.respawns: dict[str, int] = {}       # name -> restarts so far
+        self._died: dict[str, float] = {}        # name -> when its exit was seen
 
     def start(self, name: str, args: list[str]) -> None:
         log = open(self.log_dir / f'{name}.log', 'w', encoding='utf-8')  # noqa: SIM115
@@ -74,6 +87,7 @@ class Children:
 
     def run(self, spec: NodeSpec) -> None:
         """Start one process of a launch plan under its ``process`` name."""
+        self.specs[spec.process] = spec
         if spec.fork:
             self.fork(spec.process, spec.module, ros_arguments(spec))
         else:
@@ -86,10 +100,29 @@ class Children:
             os.killpg(proc.pid, signal.SIGKILL)
 
     def crashed(self) -> str | None:
-        for name, proc in self.procs.items():
-            if proc.poll() is not None and name not in self.expected_exit:
+        """The first process that exited on its own and will not be started again (None:
+        none); restarts the respawned ones that are due (module docstring)."""
+        for name, proc in list(self.procs.items()):
+            if proc.poll() is None or name in self.expected_exit:
+                continue
+            spec = self.specs.get(name)
+            if spec is None or not spec.respawn or \
+                    self.respawns.get(name, 0) >= RESPAWN_RETRIES:
                 return name
+            died = self._died.setdefault(name, time.monotonic())
+            if time.monotonic() - died >= RESPAWN_DELAY_S:
+                self._respawn(name, spec, proc.returncode)
         return None
+
+    def _respawn(self, name: str, spec: NodeSpec, code: int | None) -> None:
+        count = self.respawns[name] = self.respawns.get(name, 0) + 1
+        del self._died[name]
+        log = self.log_dir / f'{name}.log'
+        if log.exists():
+            log.rename(self.log_dir / f'{name}.run{count}.log')
+        print(f'launch_swarm: {name} exited with code {code}; started again '
+              f'({count}/{RESPAWN_RETRIES})', file=sys.stderr, flush=True)
+        self.run(spec)
 
     def tail(self, name: str, lines: int = 15) -> str:
         text = (self.log_dir / f'{name}.log').read_text(encoding='utf-8', errors='replace')
