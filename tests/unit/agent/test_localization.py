@@ -255,7 +255,8 @@ def test_modes_lost_return_home_and_back():
     # Every tick with ranges updated the filter with them (iterated EKF); those with
     # one or two beacons are misses all the same (3.1.3).
     assert loc.stats == {'localizations': 2, 'misses': 4, 'rejected': 0, 'gated': 0,
-                         'relocalizations': 0, 'partial': 0, 'range_updates': 5}
+                         'relocalizations': 0, 'partial': 0, 'range_updates': 5,
+                         'secondary': 0}
     np.testing.assert_allclose(loc.position, p, atol=0.2)
 
 
@@ -420,7 +421,7 @@ def test_consistent_fixes_reinitialize_a_wrong_filter_without_moving_its_velocit
     # precision given up, is too wide for range updates); the next takes the ranges.
     assert loc.stats == {'localizations': 3, 'misses': 0, 'rejected': 0,
                          'gated': config.max_gated, 'relocalizations': 1, 'partial': 0,
-                         'range_updates': 1}
+                         'range_updates': 1, 'secondary': 0}
     assert np.hypot(*(loc.position - velocity * t)) < 1.0
     assert np.hypot(*(loc.velocity - velocity)) < 0.15
 

@@ -120,3 +120,21 @@ def test_toa_ranges_only_to_beacon_neighbours_with_configured_noise():
     # sample std of 4000 normals: relative standard error 1 / sqrt(2 n) ~ 1.1 %
     np.testing.assert_allclose(r.std(axis=0, ddof=1), [0.5, 0.5], rtol=0.05)
     assert medium.toa_ranges(0, [0]) == []   # not its own beacon
+
+
+def test_peer_ranges_reach_every_neighbour_without_touching_the_beacon_stream():
+    """With ``peers`` the ranges cover every direct neighbour (secondary anchors), with
+    the same noise; the beacon ranges of a seed are those without peers, draw for draw
+    (peer ranges have a stream of their own)."""
+    positions = [[0.0, 0.0], [10.0, 0.0], [0.0, 20.0], [40.0, 0.0], [-6.0, -8.0], [3.0, 4.0]]
+    plain, peers = _medium(positions, seed=3), _medium(positions, seed=3)
+    for _ in range(50):
+        a = plain.toa_ranges(0, [1, 2])
+        b = peers.toa_ranges(0, [1, 2], peers=True)
+        assert b[:2] == a
+        assert [k for k, _, _ in b[2:]] == [4, 5]     # 3 is out of range
+    r = np.array([[rng for _, rng, _ in peers.toa_ranges(0, [1, 2], peers=True)[2:]]
+                  for _ in range(4000)])
+    se = 0.3 / np.sqrt(len(r))
+    np.testing.assert_allclose(r.mean(axis=0), [10.0, 5.0], atol=4 * se)
+    np.testing.assert_allclose(r.std(axis=0, ddof=1), [0.3, 0.3], rtol=0.05)

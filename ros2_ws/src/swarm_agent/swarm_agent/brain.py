@@ -411,7 +411,17 @@ class AgentBrain:
         return NeighbourInfo(self.config.agent_type, self.config.is_beacon,
                              int(self.localizer.mode), (float(pos[0]), float(pos[1])),
                              (float(vel[0]), float(vel[1])), self.settled,
-                             self.localizer.position_std)
+                             self.localizer.position_std,
+                             self._is_anchor(self._last_t or 0.0))
+
+    def _is_anchor(self, t: float) -> bool:
+        """A secondary anchor (localization.py): parked long enough to stand still,
+        confident, and localized from beacons alone since its last full fix."""
+        loc = self.localizer
+        return (loc.config.secondary_anchors and not self.config.is_beacon
+                and loc.beacon_only and self._parked_since is not None
+                and t - self._parked_since >= self.config.stand_still_after_s
+                and loc.worst_std <= loc.config.anchor_max_std)
 
     def _fresh_neighbours(self, t: float) -> dict[int, NeighbourInfo]:
         stale = [k for k, n in self.neighbours.items()
@@ -421,27 +431,35 @@ class AgentBrain:
         return {k: n.info for k, n in self.neighbours.items()}
 
     def _localize(self, t: float) -> None:
-        """Localization tick (3.1.1, 3.1.3): trilaterate against beacon neighbours."""
-        beacons = []
+        """Localization tick (3.1.1, 3.1.3): trilaterate against beacon neighbours, and
+        against secondary anchors when this agent is not one (localization.py)."""
+        beacons, anchors = [], []
         if t - self._ranges_at <= self.config.range_stale_s:
             self._fresh_neighbours(t)
-            for beacon_id, rng_m, std in self._ranges:
-                heard = self.neighbours.get(beacon_id)
+            inflation = math.sqrt(self.config.localization.beacon_variance_inflation)
+            use_anchors = (self.config.localization.secondary_anchors
+                           and not self._is_anchor(t))
+            for anchor_id, rng_m, std in self._ranges:
+                heard = self.neighbours.get(anchor_id)
                 if heard is None:
                     continue
                 info = heard.info
                 if info.is_beacon and info.mode == Mode.NORMAL:
-                    # Where the beacon was when the range was measured: its last
-                    # heartbeat extrapolated with its own velocity estimate.
-                    lag = self._ranges_at - heard.heard_at
-                    where = np.asarray(info.position) + lag * np.asarray(info.velocity)
-                    # The beacon's own position uncertainty adds to the range noise,
-                    # inflated for its persistence (LocalizationConfig).
-                    effective = math.hypot(std, info.position_std * math.sqrt(
-                        self.config.localization.beacon_variance_inflation))
-                    beacons.append((where, rng_m, effective))
+                    into = beacons
+                elif use_anchors and info.anchor and not info.is_beacon:
+                    into = anchors
+                else:
+                    continue
+                # Where the anchor was when the range was measured: its last heartbeat
+                # extrapolated with its own velocity estimate. Its own position
+                # uncertainty adds to the range noise, inflated for its persistence
+                # (LocalizationConfig.beacon_variance_inflation).
+                lag = self._ranges_at - heard.heard_at
+                where = np.asarray(info.position) + lag * np.asarray(info.velocity)
+                into.append((where, rng_m, math.hypot(std, info.position_std * inflation)))
         self.localizer.localize(t, beacons,
-                                self.localizer.position - self._position_at_ranges)
+                                self.localizer.position - self._position_at_ranges,
+                                secondary=anchors)
 
     def _round(self, t: float) -> int:
         return int(math.floor(t / self.config.consensus_period_s + 1e-9))

@@ -15,6 +15,17 @@ beacon neighbours still correct the dead reckoning of a LOST agent (the mode sta
 LOST: a tick without three beacons is a miss, as in 3.1.3). With a wide prior (the
 first fix, or after a long stretch without beacons) the agent trilaterates as the
 thesis does.
+
+Secondary anchors (beyond the thesis; Kilobot swarms self-assemble by robots localizing
+from already localized neighbours). An agent whose tick finds fewer than
+``min_beacons`` beacons ranges also to *secondary anchors*: neighbours that are parked,
+whose worst-axis deviation is below ``anchor_max_std``, and whose estimate has come from
+beacons alone since their last fix of three beacons or more (``beacon_only``). Their
+advertised deviation adds to the range noise as a beacon's does (the brain weighs
+them). The hierarchy has two levels, so there is no feedback loop: an anchor has
+anchored on no agent since its last fix from beacons alone, and an agent that anchors on
+one is not an anchor until such a fix. A tick with enough anchors counts as a
+localization (NORMAL), as one with enough beacons does.
 """
 
 from __future__ import annotations
@@ -92,11 +103,24 @@ class LocalizationConfig:
     beacon_variance_inflation: float = tunable(
         4.0, "Factor on a beacon's advertised variance (its error persists 20-40 s)",
         low=1.0, high=100.0, live=True)
+    secondary_anchors: bool = tunable(
+        True, 'Range to parked neighbours localized from beacons when beacons are too few',
+        live=True)
+    anchor_max_std: float = tunable(
+        0.5, 'An agent serves as a secondary anchor only below this worst-axis std, m',
+        low=0.01, high=10.0, live=True)
 
 
 def _chi2_999(dof: int) -> float:
     """99.9 % quantile of chi-square with ``dof`` degrees of freedom."""
     return float(chdtri(dof, 0.001))
+
+
+def _usable(anchors: Sequence[tuple[np.ndarray, float, float]]
+            ) -> list[tuple[np.ndarray, float, float]]:
+    """(position, range, std) of the anchors whose numbers are finite, std positive."""
+    return [(np.asarray(p, float), float(r), float(s)) for p, r, s in anchors
+            if np.all(np.isfinite(p)) and np.isfinite(r) and np.isfinite(s) and s > 0]
 
 
 def _ranges_only(beacons: np.ndarray, ranges: np.ndarray, std: float, fallback):
@@ -124,7 +148,11 @@ class Localizer:
         self.home = np.asarray(home if home is not None else initial_position, float)
         self._t: float | None = None
         self.stats = {'localizations': 0, 'misses': 0, 'rejected': 0, 'gated': 0,
-                      'relocalizations': 0, 'partial': 0, 'range_updates': 0}
+                      'relocalizations': 0, 'partial': 0, 'range_updates': 0,
+                      'secondary': 0}
+        # The estimate has come from beacons alone since the last fix of min_beacons
+        # beacons (module docstring, "Secondary anchors"); a deployment prior has not.
+        self.beacon_only = False
         # Fixes gated in a row: (fix, its covariance, its time).
         self._gated: list[tuple[np.ndarray, np.ndarray, float]] = []
 
@@ -145,6 +173,11 @@ class Localizer:
     @property
     def covariance(self) -> np.ndarray:
         return self.kf.P[:4, :4]
+
+    @property
+    def worst_std(self) -> float:
+        """Standard deviation of the position along its least certain axis (m)."""
+        return float(np.sqrt(max(np.linalg.eigvalsh(self.kf.P[:2, :2])[-1], 0.0)))
 
     def predict(self, t: float, accel) -> None:
         """IMU sample at time ``t`` (map-frame acceleration, m/s^2)."""
@@ -203,8 +236,11 @@ class Localizer:
         self.missed_localizations = 0
 
     def localize(self, t: float, beacons: Sequence[tuple[np.ndarray, float, float]],
-                 displacement=(0.0, 0.0)) -> Mode:
-        """Localization tick: (beacon position, range, range std) per beacon neighbour.
+                 displacement=(0.0, 0.0),
+                 secondary: Sequence[tuple[np.ndarray, float, float]] = ()) -> Mode:
+        """Localization tick: (beacon position, range, range std) per beacon neighbour,
+        and the same per secondary anchor (used when the beacons are fewer than
+        ``min_beacons``; module docstring).
 
         The ranges may be older than the tick (TOA ranging runs at its own rate):
         ``displacement`` is the agent's own dead-reckoned motion since they were
@@ -213,8 +249,26 @@ class Localizer:
         robot at 0.5 m/s moves a metre in two seconds.
         """
         shift = np.asarray(displacement, dtype=float)
-        usable = [(np.asarray(p, float), float(r), float(s)) for p, r, s in beacons
-                  if np.all(np.isfinite(p)) and np.isfinite(r) and np.isfinite(s) and s > 0]
+        usable = _usable(beacons)
+        enough = len(usable) >= self.config.min_beacons
+        extra = _usable(secondary) if secondary and not enough else []
+        before = self._updates()
+        mode = self._tick(t, usable + extra, shift)
+        if self._updates() != before:
+            if extra:
+                self.beacon_only = False
+                self.stats['secondary'] += 1
+            elif enough:
+                self.beacon_only = True
+        return mode
+
+    def _updates(self) -> tuple[int, ...]:
+        s = self.stats
+        return s['localizations'], s['range_updates'], s['partial'], s['relocalizations']
+
+    def _tick(self, t: float, usable: list[tuple[np.ndarray, float, float]],
+              shift: np.ndarray) -> Mode:
+        """``localize`` with the anchors chosen and checked."""
         tight = self._range_update(usable, shift) if usable else None
         enough = len(usable) >= self.config.min_beacons
         if enough:

@@ -43,6 +43,7 @@ _WIDE = 0x8000                 # goal-count flag: 32-bit costs
 
 FLAG_BEACON = 0x01
 FLAG_SETTLED = 0x02
+FLAG_ANCHOR = 0x04             # a secondary anchor (localization.py, "Secondary anchors")
 
 
 class MeshMessageError(ValueError):
@@ -60,10 +61,12 @@ class NeighbourInfo:
     velocity: tuple[float, float]
     settled: bool = False
     position_std: float = 0.0  # m, standard deviation of the position estimate
+    anchor: bool = False       # parked, confident, localized from beacons alone
 
     def encode(self) -> bytes:
         """Pack into 24 bytes."""
-        flags = (FLAG_BEACON if self.is_beacon else 0) | (FLAG_SETTLED if self.settled else 0)
+        flags = ((FLAG_BEACON if self.is_beacon else 0) | (FLAG_SETTLED if self.settled else 0)
+                 | (FLAG_ANCHOR if self.anchor else 0))
         return _INFO.pack(MSG_NEIGHBOUR_INFO, self.agent_type, flags, self.mode,
                           *self.position, *self.velocity, self.position_std)
 
@@ -86,7 +89,7 @@ def _decode_info(data: bytes) -> NeighbourInfo:
         raise MeshMessageError('neighbour info carries a non-finite position, velocity '
                                'or standard deviation')
     return NeighbourInfo(agent_type, bool(flags & FLAG_BEACON), mode, (x, y), (vx, vy),
-                         bool(flags & FLAG_SETTLED), std)
+                         bool(flags & FLAG_SETTLED), std, bool(flags & FLAG_ANCHOR))
 
 
 @dataclass(frozen=True)

@@ -5,8 +5,11 @@ them crosses no obstacle (line of sight, shapely STRtree over the obstacles, tes
 only for the pairs in range, found with a KD-tree). Every transmission is heard by
 each linked receiver independently, with probability ``1 - loss``, after the sender's
 airtime (frames are serialised at ``bandwidth_bps`` per sender) plus ``latency_s``.
-TOA ranges to beacons that are direct neighbours are the true distance plus Gaussian
-noise of ``range_noise_std``.
+TOA ranges to direct neighbours are the true distance plus Gaussian noise of
+``range_noise_std``: to beacons for trilateration (3.1.1) and, with ``peers``, to every
+other neighbour (agents anchor on parked, localized neighbours: ``swarm_agent.localization``,
+"Secondary anchors"). Peer ranges draw from a stream of their own, so that the beacon
+ranges and the losses of a seed do not depend on them.
 
 Faults at run time: ``set_loss``, ``set_range`` and a ``SweepingWall`` (a radio-opaque
 wall crossing the workspace, ``start_wall`` / ``move_wall``); ``RUNTIME_SETTINGS`` names
@@ -134,6 +137,7 @@ class RadioMedium:
         check_range(config.range_m)
         self.config = config
         self.rng = rng
+        self._peer_rng = rng.spawn(1)[0]
         self.stats = MediumStats()
         self.ids: list[int] = []
         self.index: dict[int, int] = {}
@@ -279,22 +283,31 @@ class RadioMedium:
         """Frames whose arrival time is <= t, in arrival order, as (receiver, packet)."""
         return [(r, packet) for packet, receivers in self.deliver_grouped(t) for r in receivers]
 
-    def toa_ranges(self, receiver: int, beacon_ids: Iterable[int]
+    def toa_ranges(self, receiver: int, beacon_ids: Iterable[int], peers: bool = False
                    ) -> list[tuple[int, float, float]]:
-        """(beacon id, measured range, std) for the beacons that are direct neighbours."""
+        """(id, measured range, std) for the beacons that are direct neighbours, then,
+        with ``peers``, for every other direct neighbour."""
         receiver = int(receiver)
         if receiver in self._dead or receiver not in self.index:
             return []
-        near = set(self._neighbours.get(receiver, []))
+        near = self._neighbours.get(receiver, [])
+        near_set = set(near)
         me = self.positions[self.index[receiver]]
         out = []
         std = self.config.range_noise_std
+        beacons = set()
         for b in beacon_ids:
-            if b in near:
+            if b in near_set:
+                beacons.add(b)
                 true = float(np.hypot(*(self.positions[self.index[b]] - me)))
                 out.append((int(b), max(0.0, true + float(self.rng.normal(0.0, std))), std))
+        others = [k for k in near if k not in beacons] if peers else []
+        if others:
+            rows = [self.index[k] for k in others]
+            true = np.hypot(*(self.positions[rows] - me).T)
+            measured = np.maximum(true + self._peer_rng.normal(0.0, std, len(rows)), 0.0)
+            out += [(int(k), float(r), std) for k, r in zip(others, measured)]
         return out
-
 
 def apply_setting(medium: RadioMedium, name: str, value: float, t: float,
                   half_size: float) -> None:
