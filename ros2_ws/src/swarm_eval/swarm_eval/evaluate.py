@@ -11,6 +11,11 @@ with the same brains, radio medium, partitioners and sensor models as the ROS sy
   boxplots.png      total displacement, settling time, epsilon_t, epsilon_g (Figs. 4.17-4.34)
   trajectories.png  the first trial's true trajectories, shape and final goals
 
+and, as the run goes (a killed evaluator leaves all but the last --record-flush
+seconds): trials.jsonl, one line of metrics per finished trial, and
+records/trial_SEED.jsonl, each trial's record (swarm_sim.run_record.RecordLog; read it
+back, also cut, with ``read_record_log``; --no-records leaves them out).
+
 The trials run on --workers local processes or, with --dask ADDRESS, on a Dask cluster
 (``dask.distributed.Client(ADDRESS)``; ``--dask local`` starts a LocalCluster of --workers
 single-threaded processes). A trial depends only on its seed, so both give the same
@@ -39,7 +44,8 @@ from swarm_mission.mission import REMESH
 from swarm_mission.partition import PartitionError
 from swarm_sim import plots
 from swarm_sim.headless import ScenarioError
-from swarm_sim.report import run_report, write_metrics
+from swarm_sim.report import dumps, run_report, write_metrics
+from swarm_sim.run_record import FLUSH_PERIOD_S
 
 BOX_KEYS = (('total_displacement', 'total displacement [m]'),
             ('settling_time', 'settling time [s]'), ('epsilon_t', 'epsilon_t'),
@@ -91,6 +97,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                              'the development key, docs/security.md)')
     parser.add_argument('--no-auth', dest='auth', action='store_false',
                         help='unauthenticated radio frames (only to compare with and without)')
+    parser.add_argument('--record-flush', type=float, default=FLUSH_PERIOD_S, metavar='S',
+                        help='wall seconds between flushes of the records to disk (the '
+                             'most a killed evaluator loses)')
+    parser.add_argument('--no-records', dest='records', action='store_false',
+                        help='no per-trial records (records/trial_SEED.jsonl)')
     parser.add_argument('--out', required=True, help='results directory')
     return parser.parse_args(argv)
 
@@ -128,6 +139,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.trials < 1 or args.workers < 1:
             raise ScenarioError('--trials and --workers must be at least 1')
+        if not 0.0 < args.record_flush <= 60.0:
+            raise ScenarioError(f'--record-flush {args.record_flush:g}: give wall seconds '
+                                f'in (0, 60], e.g. {FLUSH_PERIOD_S:g}')
         spec = ScenarioSpec.from_namespace(args)
         build_scenario(spec, args.seed).validate()
     except (ShapeError, ScenarioError, RobotTypeError, PartitionError) as exc:
@@ -139,17 +153,22 @@ def main(argv: list[str] | None = None) -> int:
 
     trials: list[dict] = []
     first = None
+    record_dir = str((out / 'records').resolve()) if args.records else ''
     try:
         with contextlib.ExitStack() as stack:
+            done = stack.enter_context(open(out / 'trials.jsonl', 'w', encoding='utf-8'))
             if args.dask:
                 client = stack.enter_context(dask_client(args.dask, args.workers))
-                records = dask_trials(client, spec, seeds)
+                records = dask_trials(client, spec, seeds, record_dir, args.record_flush)
             else:
-                records = local_trials(spec, seeds, args.workers)
+                records = local_trials(spec, seeds, args.workers, record_dir,
+                                       args.record_flush)
             stack.enter_context(contextlib.closing(records))
             for record in tqdm(records, total=len(seeds), unit='trial',
                                desc=f'{args.method} x{args.agents}'):
                 trials.append(record.metrics)
+                done.write(dumps(record.metrics) + '\n')
+                done.flush()
                 if record.metrics['seed'] == seeds[0]:
                     first = record
     except (PartitionError, ShapeError, ScenarioError, DaskError) as exc:

@@ -224,9 +224,11 @@ class HeadlessSwarm:
                 self.mission.events.append(f't={t:.1f} s: agent {agent} removed')
 
     # ------------------------------------------------------------------ run
-    def run(self, progress: Callable[[float, float], None] | None = None) -> TrialRecord:
+    def run(self, progress: Callable[[float, float], None] | None = None,
+            sink: Callable[[dict], None] | None = None) -> TrialRecord:
         """Run until the settled condition has held for ``settle_hold_s`` after the last
-        change with nothing scheduled, or for the duration (then not settled)."""
+        change with nothing scheduled, or for the duration (then not settled). ``sink``
+        gets each sample of the record as it is taken (``run_record.RecordLog.add``)."""
         sc, world = self.scenario, self.world
         wall0 = wallclock.perf_counter()
         self._apply_shape(0.0, sc.shape)
@@ -264,6 +266,8 @@ class HeadlessSwarm:
                 self.mission_radio.on_packet(t, packet)
             if readings.truth is not None:
                 self._sample(readings, rec)
+                if sink is not None:
+                    sink({k: v[-1] for k, v in rec.items()})
                 if progress is not None:
                     progress(t, sc.duration_s)
                 # Never stop before a scheduled shape change, removal or fault, nor
