@@ -118,10 +118,14 @@ def test_a_bad_parameter_is_one_line_and_exit_2(args, names):
 
 
 @pytest.mark.parametrize('stop', ['SIGINT', 'SIGKILL'])
-def test_a_stopped_recorder_leaves_a_readable_bag(processes, tmp_path: pathlib.Path, stop):
+def test_a_stopped_recorder_leaves_a_readable_bag(processes, tmp_path: pathlib.Path, stop,
+                                                 caplog):
     """Ctrl-C (the launcher's stop) closes the bag with its summary; a SIGKILLed
-    recorder leaves what it flushed (every wall second) readable."""
+    recorder leaves what it flushed (every wall second) readable, and the reader says in
+    one line that the bag was cut."""
+    import logging
     import signal
+    import time
 
     from mcap.reader import make_reader
 
@@ -139,24 +143,30 @@ def test_a_stopped_recorder_leaves_a_readable_bag(processes, tmp_path: pathlib.P
             assert spin_until(executor, lambda: state_pub.get_subscription_count() > 0,
                               timeout=30.0)
             sent = 0
+            published_at: list[float] = []
 
             def publish() -> bool:
                 nonlocal sent
                 if sent < 60:
                     state_pub.publish(_state(sent))
+                    published_at.append(time.monotonic())
                     sent += 1
                 return sent >= 60
 
             spin_until(executor, publish, timeout=60.0, step=0.05)
             # A message sent last is delivered before the signal.
             spin_until(executor, lambda: False, timeout=0.5)
+            stopped_at = time.monotonic()
             proc.send_signal(getattr(signal, stop))
             output, _ = proc.communicate(timeout=30)
         finally:
             pub.destroy_node()
-    recorded = [msg.assigned_goal for topic, _, _, msg in read_messages(bag)]
+    with caplog.at_level(logging.WARNING, logger='swarm_bringup.bag'):
+        recorded = [msg.assigned_goal for topic, _, _, msg in read_messages(bag)]
+    cut_lines = [r.getMessage() for r in caplog.records if 'was cut' in r.getMessage()]
     if stop == 'SIGINT':
         assert proc.returncode == 0 and 'Traceback' not in output, output
+        assert not cut_lines
         assert recorded == list(range(60))   # reliable, depth 10: none lost on localhost
         with open(bag, 'rb') as f:
             assert make_reader(f).get_summary().statistics.message_count == 60
@@ -164,3 +174,9 @@ def test_a_stopped_recorder_leaves_a_readable_bag(processes, tmp_path: pathlib.P
         # The chunks flushed by the last full wall second: at least the first 20 (1 s at
         # 20 Hz), in order, and nothing made up.
         assert len(recorded) >= 20 and recorded == list(range(len(recorded))), recorded
+        # All but the last seconds: every message published more than a flush period
+        # (1 s) plus the flush timer's period and delivery slack (1 s) before the kill.
+        old_enough = sum(t < stopped_at - 2.0 for t in published_at)
+        assert len(recorded) >= old_enough, (len(recorded), old_enough)
+        assert len(cut_lines) == 1 and cut_lines[0].startswith(
+            f'bag {bag} was cut (its recorder was killed): {len(recorded)} messages up to')

@@ -7,6 +7,7 @@ publisher sends) and read back with its decoder, field by field, without ROS.
 
 from __future__ import annotations
 
+import logging
 import pathlib
 
 from mcap.reader import make_reader
@@ -144,7 +145,7 @@ def test_a_closed_bag_has_the_ros2_profile_schemas_and_summary(tmp_path: pathlib
     assert [m[3].angular.z for m in msgs] == [1.25, 1.25]
 
 
-def test_an_unclosed_bag_is_readable_up_to_its_last_flush(tmp_path: pathlib.Path):
+def test_an_unclosed_bag_is_readable_up_to_its_last_flush(tmp_path: pathlib.Path, caplog):
     """A recorder killed (no close) leaves every message of the chunks flushed before."""
     clock = FakeClock()
     path = tmp_path / 'run.mcap'
@@ -171,7 +172,12 @@ def test_an_unclosed_bag_is_readable_up_to_its_last_flush(tmp_path: pathlib.Path
     # Killed while writing the second chunk: the first one still reads.
     cut = tmp_path / 'cut.mcap'
     cut.write_bytes(path.read_bytes()[:(first_flush + path.stat().st_size) // 2])
-    assert [lt for _, _, lt, _ in read_messages(cut)] == list(range(11))
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        assert [lt for _, _, lt, _ in read_messages(cut)] == list(range(11))
+    # One line says the bag was cut and what it holds (log times 0..10 ns here).
+    assert [r.getMessage() for r in caplog.records] == [
+        f'bag {cut} was cut (its recorder was killed): 11 messages up to t=0.0 s read']
     # A tail cut mid-record (killed while writing) is dropped; the rest still reads.
     size = path.stat().st_size
     with open(path, 'ab') as f:
@@ -179,6 +185,10 @@ def test_an_unclosed_bag_is_readable_up_to_its_last_flush(tmp_path: pathlib.Path
     assert path.stat().st_size > size
     assert [lt for _, _, lt, _ in read_messages(path)] == list(range(15))
     bag.close()
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):   # closed (footer written): not cut
+        assert [lt for _, _, lt, _ in read_messages(path)] == list(range(15))
+    assert not caplog.records
 
 
 def test_bad_use_is_refused_in_one_line(tmp_path: pathlib.Path):

@@ -12,20 +12,21 @@ Messages collect in a chunk (zstd-compressed) that is written out and flushed to
 file at least every ``flush_period_s`` (``flush_if_due``, called on every write and by
 the recorder's wall-clock timer): a recorder killed without closing loses at most that
 much, and ``read_messages`` reads a bag that was never closed up to its last flushed
-chunk. The ``.msg`` files come from the installed interface packages' share folders
-(ament_index). Pure: no ROS client library import.
+chunk, with one warning line saying it was cut. The ``.msg`` files come from the
+installed interface packages' share folders (ament_index). Pure: no ROS client library import.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
+import logging
 import pathlib
 import re
 import time
 from typing import Any, BinaryIO
 
 from mcap.exceptions import McapError
-from mcap.records import Channel, Message, Schema
+from mcap.records import Channel, Footer, Message, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
@@ -38,6 +39,7 @@ PRIMITIVES = frozenset((
     'int32', 'uint32', 'int64', 'uint64', 'string', 'wstring'))
 _BOUND = re.compile(r'<=\d+$')        # string<=10
 _ARRAY = re.compile(r'\[[^\]]*\]$')   # T[], T[3], T[<=3]
+_log = logging.getLogger(__name__)
 
 
 # The swarm's own profiles (swarm_common.qos) of its topics, by full name or by the rest
@@ -270,24 +272,30 @@ class BagWriter:
 
 def read_raw(path: str | pathlib.Path) -> Iterator[tuple[Channel, Schema | None, Message]]:
     """Every message of a bag in file order with its channel and schema; a bag never
-    closed (its writer killed) is read up to its last complete record."""
+    closed (its writer killed: no footer) is read up to its last complete record, and
+    one warning line says so."""
     with open(path, 'rb') as stream:
         schemas: dict[int, Schema] = {}
         channels: dict[int, Channel] = {}
         records = StreamReader(stream, skip_magic=False, emit_chunks=False).records
+        count, last_ns = 0, 0
         while True:
             try:
                 record = next(records)
-            except StopIteration:
+            except (StopIteration, McapError, EOFError, ValueError, OSError):
+                # The end, or a truncated tail: everything before it was read.
+                _log.warning('bag %s was cut (its recorder was killed): %d messages up to '
+                             't=%.1f s read', path, count, last_ns / 1e9)
                 return
-            except (McapError, EOFError, ValueError, OSError):
-                return   # a truncated tail: everything before it was read
+            if isinstance(record, Footer):
+                return
             if isinstance(record, Schema):
                 schemas[record.id] = record
             elif isinstance(record, Channel):
                 channels[record.id] = record
             elif isinstance(record, Message):
                 channel = channels[record.channel_id]
+                count, last_ns = count + 1, max(last_ns, record.log_time)
                 yield channel, schemas.get(channel.schema_id), record
 
 
