@@ -1,10 +1,12 @@
 /* selftest.c - a C-only smoke test of the portable firmware on the host (make host). */
 #include <stdint.h>
 #include <stdio.h>
+#include <string.h>
 
 #include "mixer.h"
 #include "robot.h"
 #include "stepper.h"
+#include "swarm_coordinator.h"
 #include "xbee_parser.h"
 
 void fw_reset(void);
@@ -13,21 +15,22 @@ void fw_ticks(uint32_t n);
 extern uint32_t host_tx_len;
 
 static int failures;
+static int checks;
 
-#define CHECK(cond) do { if (!(cond)) { printf("FAIL %s:%d %s\n", __FILE__, __LINE__, #cond); \
-    failures++; } } while (0)
+#define CHECK(cond) do { checks++; if (!(cond)) { printf("FAIL %s:%d %s\n", __FILE__, \
+    __LINE__, #cond); failures++; } } while (0)
 
-int main(void)
+/* An escaped 0x90 frame from addr carrying CMD_VEL seq 7, speed 300 (30 mm/s), alpha 90
+ * deg; returns its length. The frame data holds 0x13 (XOFF) when addr does. */
+static uint8_t cmd_vel_frame(const uint8_t addr[8], uint8_t *frame)
 {
-    /* 0x90 frame from 0013A20040A1B2C3: CMD_VEL seq 7, speed 300 (30 mm/s), alpha 90 deg.
-     * The frame data holds 0x13 (XOFF), which API mode 2 escapes on the wire. */
-    const uint8_t data[] = { 0x90, 0x00, 0x13, 0xA2, 0x00, 0x40, 0xA1, 0xB2, 0xC3, 0xFF,
-                             0xFE, 0x01, 0x01, 0x07, 0x01, 0x2C, 0x00, 0x5A };
-    uint8_t frame[2 * sizeof(data) + 8];
+    uint8_t data[18] = { 0x90, 0, 0, 0, 0, 0, 0, 0, 0, 0xFF,
+                         0xFE, 0x01, 0x01, 0x07, 0x01, 0x2C, 0x00, 0x5A };
     uint8_t n = 0;
     uint8_t i;
     uint8_t sum = 0;
     uint8_t b;
+    memcpy(data + 1, addr, 8);
     frame[n++] = SWP_XBEE_START;
     frame[n++] = 0x00;
     frame[n++] = (uint8_t)sizeof(data);
@@ -45,9 +48,28 @@ int main(void)
         }
         frame[n++] = b;
     }
+    return n;
+}
+
+int main(void)
+{
+    const uint8_t coordinator[8] = SWP_COORDINATOR_ADDR64;
+    uint8_t stranger[8];
+    uint8_t frame[2 * 18 + 8];
+    uint8_t n;
+    memcpy(stranger, coordinator, 8);
+    stranger[7] ^= 0x01;   /* one bit away from the coordinator */
     fw_reset();
+    /* a stranger's command: dropped unanswered, counted, flagged */
+    n = cmd_vel_frame(stranger, frame);
     fw_feed(frame, n);
-    CHECK(xp.frames == 1);
+    CHECK(xp.frames == 1 && robot.foreign == 1);
+    CHECK(st_rate[0] == 0 && st_rate[1] == 0 && st_rate[2] == 0);
+    CHECK(host_tx_len == 0 && (robot.faults & SWP_FAULT_FOREIGN));
+    /* the coordinator's */
+    n = cmd_vel_frame(coordinator, frame);
+    fw_feed(frame, n);
+    CHECK(xp.frames == 2 && robot.foreign == 1);
     CHECK(robot.last_cmd_seq == 7);
     /* alpha = 90: V_A = v cos(60) = 150 units, V_B = v cos(-60) = 150, V_C = v cos(180) */
     CHECK(st_rate[0] == 337 && st_rate[1] == 337 && st_rate[2] == -674);
@@ -57,6 +79,6 @@ int main(void)
     fw_ticks(1);
     CHECK(st_rate[0] == 0 && st_rate[1] == 0 && st_rate[2] == 0);
     CHECK(robot.faults & SWP_FAULT_WATCHDOG);
-    printf("selftest: %d of 7 checks passed\n", 7 - failures);
+    printf("selftest: %d of %d checks passed\n", checks - failures, checks);
     return failures != 0;
 }

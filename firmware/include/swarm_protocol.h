@@ -42,12 +42,12 @@
 /* byte 0: message type, byte 1: sequence number; lengths are exact.                   */
 #define SWP_MSG_CMD_VEL           0x01  /* type seq speed[2] direction[2]               */
 #define SWP_MSG_STOP              0x02  /* type seq                                     */
-#define SWP_MSG_STATUS            0x81  /* type seq last_cmd_seq age[2] rate[3][2] faults bad_frames */
+#define SWP_MSG_STATUS            0x81  /* type seq last_cmd_seq age[2] rate[3][2] faults bad_frames foreign */
 #define SWP_MSG_ACK               0x82  /* type acked_seq acked_type result             */
 
 #define SWP_LEN_CMD_VEL           6
 #define SWP_LEN_STOP              2
-#define SWP_LEN_STATUS            13
+#define SWP_LEN_STATUS            14
 #define SWP_LEN_ACK               4
 
 /* ACK result codes */
@@ -62,6 +62,8 @@
 #define SWP_FAULT_RATE_LIMIT      0x04  /* a wheel rate was clipped to SWP_MAX_STEP_RATE   */
 #define SWP_FAULT_UART            0x08  /* EUSART overrun or framing error                  */
 #define SWP_FAULT_BAD_MSG         0x10  /* unknown message type, bad length or bad value    */
+#define SWP_FAULT_FOREIGN         0x20  /* a 0x90 frame from another address than the       */
+                                        /* coordinator's was dropped (status byte foreign) */
 #define SWP_FAULT_RESET           0x80  /* set from power-up until the first status is sent */
 #define SWP_FAULT_STICKY          SWP_FAULT_WATCHDOG /* the others clear once reported      */
 
@@ -103,7 +105,12 @@
 #define SWP_HEARTBEAT_MS          200   /* status period                                 */
 #define SWP_BAUD                  9600
 
-/* Address heartbeats go to before the first command arrives (ZigBee coordinator). */
-#define SWP_HOST_ADDR64_DEFAULT   { 0, 0, 0, 0, 0, 0, 0, 0 }
+/* ---- Who may command the board ------------------------------------------------------ */
+/* SWP_COORDINATOR_ADDR64, the 64-bit address (SH + SL) of the coordinator XBee, is in
+ * swarm_coordinator.h, which the Makefile generates in the build directory from the fleet
+ * file's `coordinator` (or COORDINATOR=16 hex digits; tools/coordinator_header.py). The
+ * board obeys only 0x90 frames whose source address equals it, and sends its acks and
+ * statuses to it; other 0x90 frames are dropped unanswered and counted (status byte
+ * foreign, fault SWP_FAULT_FOREIGN). */
 
 #endif /* SWARM_PROTOCOL_H */

@@ -1,5 +1,8 @@
 /* robot.c - the board's application layer (see PROTOCOL.md).
  *
+ * Only 0x90 frames from the coordinator's 64-bit address (SWP_COORDINATOR_ADDR64, set at
+ * build time from the fleet file) are obeyed; any other sender's frame is dropped
+ * unanswered and counted (robot.foreign, status byte 13, fault SWP_FAULT_FOREIGN).
  * A valid CMD_VEL is mixed into three wheel rates (eqs. 5.1-5.3, mixer.c) and applied
  * to the stepper channels; STOP zeroes them. Every command is acknowledged. The command
  * watchdog in robot_tick() zeroes the rates SWP_CMD_TIMEOUT_MS after the last valid
@@ -10,6 +13,7 @@
 #include "hal.h"
 #include "mixer.h"
 #include "stepper.h"
+#include "swarm_coordinator.h" /* generated in the build directory (Makefile) */
 #include "xbee_parser.h"
 
 robot_t robot;
@@ -108,14 +112,24 @@ static uint8_t handle_frame(void)
     uint8_t seq;
     uint16_t speed;
     uint16_t alpha;
-    if (xp.buf[0] != SWP_API_RX_PACKET || xp.length < SWP_RX_HEADER_LEN + 2) {
+    if (xp.buf[0] != SWP_API_RX_PACKET || xp.length < SWP_RX_HEADER_LEN) {
         xp.ready = 0;
-        return 0; /* modem status, transmit status, or no message: nothing to do */
+        return 0; /* modem status, transmit status: from our own XBee, nothing to do */
+    }
+    for (i = 0; i < 8; i++) {
+        /* the sender's 64-bit address must be the coordinator's; unsigned index (see
+         * xbee_parser.c). Dropped unanswered: an ack would tell a stranger it was heard. */
+        if (xp.buf[(uint8_t)(i + 1)] != robot.host[i]) {
+            xp.ready = 0;
+            robot.foreign++;
+            set_fault(SWP_FAULT_FOREIGN);
+            return 0;
+        }
     }
     len = xp.length - SWP_RX_HEADER_LEN;
-    for (i = 0; i < 8; i++) {
-        robot.host[i] = xp.buf[(uint8_t)(i + 1)]; /* answer whoever commands us; an
-                                                   * unsigned index (see xbee_parser.c) */
+    if (len < 2) {
+        xp.ready = 0;
+        return 0; /* no message: nothing to do */
     }
     type = xp.buf[XP_MSG];
     seq = xp.buf[XP_MSG + 1];
@@ -152,7 +166,7 @@ static uint8_t handle_frame(void)
 void robot_init(void)
 {
     uint8_t i;
-    static const uint8_t HOST_DEFAULT[8] = SWP_HOST_ADDR64_DEFAULT;
+    static const uint8_t COORDINATOR[8] = SWP_COORDINATOR_ADDR64;
     xp_reset();
     stepper_init();
     robot.cmd_age_ms = 0xFFFF;
@@ -162,8 +176,9 @@ void robot_init(void)
     robot.status_seq = 0;
     robot.last_cmd_seq = 0;
     robot.running = 0;
+    robot.foreign = 0;
     for (i = 0; i < 8; i++) {
-        robot.host[i] = HOST_DEFAULT[i];
+        robot.host[i] = COORDINATOR[i];
     }
     for (i = 0; i < 3; i++) {
         mix_rate[i] = 0;
@@ -216,6 +231,7 @@ void robot_poll(void)
     robot.tx[4] = (uint8_t)age;
     robot.tx[11] = faults;
     robot.tx[12] = (uint8_t)(xp.bad_checksums + xp.truncated + xp.oversize + xp.busy);
+    robot.tx[13] = robot.foreign;
     send_payload(SWP_LEN_STATUS);
 }
 

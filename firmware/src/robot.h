@@ -20,7 +20,9 @@ typedef struct {
     uint8_t status_seq;
     uint8_t last_cmd_seq;
     uint8_t running;         /* a nonzero wheel rate is applied                      */
-    uint8_t host[8];         /* 64-bit address statuses and acks go to               */
+    uint8_t foreign;         /* 0x90 frames dropped: not from the coordinator (mod 256) */
+    uint8_t host[8];         /* the coordinator's 64-bit address (SWP_COORDINATOR_ADDR64):
+                              * the only sender obeyed, where statuses and acks go   */
     uint8_t tx[SWP_LEN_STATUS];
 } robot_t;
 

@@ -4,6 +4,10 @@ from __future__ import annotations
 
 from swarm_bridge import protocol, xbee
 
+# The coordinator XBee the test builds of the firmware obey (make COORDINATOR=...): the
+# host-firmware and gpsim tests send their commands from it.
+COORDINATOR = 0x0013A20041FFFF01
+
 
 def board_messages(data: bytes) -> list:
     """(XBee address, robot message) of every TX request in a board's output bytes."""

@@ -4,12 +4,24 @@ from __future__ import annotations
 
 import ctypes
 import pathlib
+import re
 import shutil
 import subprocess
 
+from board_frames import COORDINATOR
 import pytest
 
 FIRMWARE = pathlib.Path(__file__).resolve().parents[3] / 'firmware'
+
+
+class RobotState(ctypes.Structure):
+    """robot_t of firmware/src/robot.h, up to the coordinator address."""
+
+    _fields_ = [('cmd_age_ms', ctypes.c_uint16), ('heartbeat_ms', ctypes.c_uint16),
+                ('heartbeat_due', ctypes.c_uint8), ('faults', ctypes.c_uint8),
+                ('status_seq', ctypes.c_uint8), ('last_cmd_seq', ctypes.c_uint8),
+                ('running', ctypes.c_uint8), ('foreign', ctypes.c_uint8),
+                ('host', ctypes.c_uint8 * 8)]
 
 
 class Firmware:
@@ -31,6 +43,7 @@ class Firmware:
         # xbee_parser_t: frames bad_checksums truncated oversize garbage busy state escaped
         # length index sum ready buf[...] (counters first, xbee_parser.h)
         self.parser = (ctypes.c_uint8 * 12).in_dll(self.lib, 'xp')
+        self.robot = RobotState.in_dll(self.lib, 'robot')
 
     def reset(self) -> None:
         """Power-up state."""
@@ -75,10 +88,12 @@ def firmware(tmp_path_factory) -> Firmware:
         pytest.skip('make and gcc are needed to build the firmware for the host '
                     '(apt-get install build-essential)')
     out = tmp_path_factory.mktemp('fw_host')
-    result = subprocess.run(['make', '-C', str(FIRMWARE), 'host', f'HOST_DIR={out}'],
-                            capture_output=True, text=True)
+    result = subprocess.run(['make', '-C', str(FIRMWARE), 'host', f'HOST_DIR={out}',
+                             f'COORDINATOR={COORDINATOR:016X}'], capture_output=True, text=True)
     assert result.returncode == 0, f'make host failed:\n{result.stdout}\n{result.stderr}'
-    assert 'selftest: 7 of 7 checks passed' in result.stdout
+    passed = re.search(r'selftest: (\d+) of (\d+) checks passed', result.stdout)
+    assert passed and passed.group(1) == passed.group(2) and int(passed.group(2)) >= 10, \
+        result.stdout
     fw = Firmware(out / 'libswarmfw.so')
     fw.reset()
     return fw

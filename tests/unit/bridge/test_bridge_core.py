@@ -67,7 +67,7 @@ def test_garbage_unknown_addresses_and_silent_boards_are_counted_once():
     assert bridge.links[2].silent and bridge.counters['silent_boards'] == 1
     assert bridge.counters['delivery_failures'] > 10
     texts = [e.text for e in bridge.take_events()]
-    assert sum('unknown address' in t for t in texts) == 1
+    assert sum('not in the fleet' in t for t in texts) == 1
     assert sum('stopped answering' in t for t in texts) == 1
     assert sum('could not deliver' in t for t in texts) == 1
     radio.boards[robots[2].address].powered = True

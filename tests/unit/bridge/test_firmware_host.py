@@ -1,5 +1,6 @@
 """The firmware's portable C (built with gcc, loaded with ctypes) against the Python side:
-same frames, same decoded commands, same fixed-point mix (eqs. 5.1-5.3), 500 ms watchdog."""
+same frames, same decoded commands, same fixed-point mix (eqs. 5.1-5.3), 500 ms watchdog,
+commands obeyed only from the coordinator's 64-bit address (the emulator filters alike)."""
 
 from __future__ import annotations
 
@@ -7,13 +8,14 @@ import math
 import pathlib
 import re
 
-from board_frames import board_messages
+from board_frames import board_messages, COORDINATOR
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from swarm_bridge import protocol, xbee
+from swarm_bridge import emulator, protocol, xbee
 
-HOST = 0x0013A20041FFFF01
+HOST = COORDINATOR
+STRANGER = HOST ^ 0x01              # one bit away from the coordinator
 HEADER = pathlib.Path(__file__).resolve().parents[3] / 'firmware/include/swarm_protocol.h'
 
 
@@ -84,6 +86,8 @@ def test_body_command_reproduces_the_map_velocity(vx, vy, yaw):
     st.builds(protocol.CmdVel, st.integers(0, 255), st.integers(0, 0xFFFF),
               st.integers(0, 359)).map(command_frame),
     st.builds(protocol.Stop, st.integers(0, 255)).map(command_frame),
+    st.builds(protocol.Stop, st.integers(0, 255)).map(
+        lambda m: command_frame(m, STRANGER)),
     st.binary(max_size=20)), max_size=8), st.data())
 def test_c_parser_and_python_decoder_agree_on_any_stream(firmware, chunks, data):
     stream = bytearray(b''.join(chunks))
@@ -103,8 +107,12 @@ def test_c_parser_and_python_decoder_agree_on_any_stream(firmware, chunks, data)
     assert counters['oversize'] == py.stats.oversize % 256
     # and the last valid command decoded by Python is the one the board applies
     commands = []
+    foreign = 0
     for f in frames:
-        if f[0] == xbee.API_RX_PACKET and len(f) >= xbee.RX_HEADER_LEN + 2:
+        if f[0] == xbee.API_RX_PACKET and len(f) >= xbee.RX_HEADER_LEN \
+                and f[1:9] != HOST.to_bytes(8, 'big'):
+            foreign += 1
+        elif f[0] == xbee.API_RX_PACKET and len(f) >= xbee.RX_HEADER_LEN + 2:
             try:
                 commands.append(protocol.decode_message(f[xbee.RX_HEADER_LEN:]))
             except protocol.MessageError:
@@ -114,6 +122,60 @@ def test_c_parser_and_python_decoder_agree_on_any_stream(firmware, chunks, data)
     if commands and isinstance(commands[-1], protocol.CmdVel):
         expected = protocol.mix_fixed(commands[-1].speed, commands[-1].direction)[0]
     assert tuple(firmware.rates) == expected
+    assert firmware.robot.foreign == foreign % 256
+    # the emulator (the HIL demo's board) filters and counts alike
+    board = emulator.EmulatedBoard(1, coordinator=HOST)
+    board.receive(bytes(stream))
+    assert tuple(board.rates) == expected and board.foreign == foreign
+
+
+def test_only_the_coordinator_commands_the_board(firmware):
+    """A 0x90 frame whose source differs from the coordinator's address in any one of its
+    8 bytes is dropped unanswered and counted (status byte foreign, fault FOREIGN); the
+    coordinator's command is obeyed and acknowledged to the coordinator."""
+    firmware.reset()
+    firmware.take_tx()
+    for k in range(8):
+        firmware.feed(command_frame(protocol.CmdVel(k, 300, 90), HOST ^ (0x80 << 8 * k)))
+    assert not any(firmware.rates) and firmware.take_tx() == b''
+    assert firmware.robot.foreign == 8
+    firmware.feed(command_frame(protocol.CmdVel(9, 300, 90)))
+    assert tuple(firmware.rates) == protocol.mix_fixed(300, 90)[0]
+    firmware.ticks(protocol.HEARTBEAT_MS)
+    sent = board_messages(firmware.take_tx())
+    assert sent[0] == (HOST, protocol.Ack(9, protocol.MSG_CMD_VEL, protocol.ACK_OK))
+    address, status = sent[-1]
+    assert address == HOST and status.foreign == 8 and status.faults & protocol.FAULT_FOREIGN
+    firmware.ticks(protocol.HEARTBEAT_MS)      # the flag clears once reported, not the count
+    status = board_messages(firmware.take_tx())[-1][1]
+    assert status.foreign == 8 and not status.faults & protocol.FAULT_FOREIGN
+
+
+def test_a_stranger_can_neither_stop_nor_keep_alive_a_robot(firmware):
+    """A stranger's STOP leaves the coordinator's command running; its CmdVel every
+    100 ms does not restart the watchdog, which stops the wheels 500 ms after the
+    coordinator's last command."""
+    firmware.reset()
+    firmware.feed(command_frame(protocol.CmdVel(1, 200, 45)))
+    rates = tuple(firmware.rates)
+    firmware.feed(command_frame(protocol.Stop(2), STRANGER))
+    assert tuple(firmware.rates) == rates and any(rates)
+    for k in range(4):
+        firmware.ticks(100)
+        firmware.feed(command_frame(protocol.CmdVel(3 + k, 200, 45), STRANGER))
+    firmware.ticks(protocol.CMD_TIMEOUT_MS - 400 - 1)
+    assert tuple(firmware.rates) == rates
+    firmware.ticks(1)
+    assert not any(firmware.rates) and firmware.robot.foreign == 5
+
+
+def test_statuses_go_to_the_coordinator_from_power_up(firmware):
+    firmware.reset()
+    firmware.take_tx()
+    firmware.ticks(protocol.HEARTBEAT_MS)
+    sent = board_messages(firmware.take_tx())
+    assert [a for a, _ in sent] == [HOST]
+    assert isinstance(sent[0][1], protocol.Status) and len(sent[0][1].encode()) == 14
 
 
 def test_watchdog_stops_the_motors_500_ms_after_the_last_command(firmware):

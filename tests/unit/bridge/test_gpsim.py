@@ -6,11 +6,13 @@ PORTA/PORTC (the three ULN2003 channels) are logged. The same frames go to
 swarm_bridge.emulator.EmulatedBoard at the millisecond their last byte arrives. Checked:
 the bytes the board sends (acks, statuses every 200 ms) decode to the emulator's messages
 (cmd_age_ms to the chip's command latency); the coils start after the command and go
-quiet 500 ms after it (watchdog); a frame with a bad checksum is not acknowledged and is
-counted; each motor channel half-steps in the emulator's direction as often as the
-emulator's wheel (eqs. 5.1-5.3 mix). This last check found the interrupt overwriting sdcc's
-STK00 under the main loop's table read (wheel B at 187 instead of 337 half-steps/s; see
-PROTOCOL.md, "Interrupt rule").
+quiet 500 ms after it (watchdog); frames from another XBee than the coordinator (a STOP
+that would stop the wheels early, a CmdVel that would keep them running) are ignored,
+unanswered and counted; a frame with a bad checksum is not acknowledged and is counted;
+each motor channel half-steps in the emulator's direction as often as the emulator's wheel
+(eqs. 5.1-5.3 mix). This last check found the interrupt overwriting sdcc's STK00 under
+the main loop's table read (wheel B at 187 instead of 337 half-steps/s; see PROTOCOL.md,
+"Interrupt rule").
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import math
 import re
 import subprocess
 
-from board_frames import board_messages
+from board_frames import board_messages, COORDINATOR
 import pic_toolchain
 import pytest
 
@@ -28,7 +30,8 @@ from swarm_bridge import emulator, protocol, xbee
 pytestmark = pytest.mark.skipif(pic_toolchain.missing(gpsim=True) is not None,
                                 reason=str(pic_toolchain.missing(gpsim=True)))
 
-HOST = 0x0013A20041FFFF01
+HOST = COORDINATOR
+STRANGER = 0x0013A20041FFFF02        # another XBee in range
 CYCLES_PER_MS = 2000                 # 8 MHz / 4
 BYTE_MS = 10 * 1000 / 9600           # start + 8 data + stop bits
 HALF_STEP = [0x01, 0x03, 0x02, 0x06, 0x04, 0x0C, 0x08, 0x09]
@@ -36,14 +39,16 @@ END_MS = 1300
 LATENCY_MS = 15                      # command applied after its last byte, at most
 
 
-def frame(message: protocol.Message, corrupt: bool = False) -> bytes:
-    data = bytearray(xbee.encode(xbee.RxPacket(HOST, message.encode())))
+def frame(message: protocol.Message, corrupt: bool = False, source: int = HOST) -> bytes:
+    data = bytearray(xbee.encode(xbee.RxPacket(source, message.encode())))
     if corrupt:
         data[-1] ^= 0x01              # the checksum (never an escaped byte here)
     return bytes(data)
 
 
 INPUT = [(250, frame(protocol.CmdVel(9, 300, 90))),
+         (400, frame(protocol.Stop(20), source=STRANGER)),
+         (600, frame(protocol.CmdVel(21, 300, 270), source=STRANGER)),
          (850, frame(protocol.CmdVel(10, 300, 90), corrupt=True))]
 
 
@@ -52,7 +57,8 @@ def pic_build(tmp_path_factory):
     """The PIC build's directory: swarm_robot.cod and sdcc's .asm of every source."""
     out = tmp_path_factory.mktemp('gpsim')
     build = subprocess.run(['make', '-C', str(pic_toolchain.FIRMWARE), 'pic',
-                            f'PIC_DIR={out}'], capture_output=True, text=True)
+                            f'PIC_DIR={out}', f'COORDINATOR={HOST:016X}'],
+                           capture_output=True, text=True)
     assert build.returncode == 0, build.stdout + build.stderr
     return out
 
@@ -88,7 +94,7 @@ def gpsim_run(pic_build):
 
 @pytest.fixture(scope='module')
 def emulated():
-    board = emulator.EmulatedBoard(0)
+    board = emulator.EmulatedBoard(0, coordinator=HOST)
     done = {math.ceil(at + len(data) * BYTE_MS): data for at, data in INPUT}
     sent = bytearray()
     for ms in range(1, END_MS + 1):
@@ -128,11 +134,17 @@ def test_board_sends_what_the_emulator_sends(gpsim_run, emulated):
             assert -LATENCY_MS <= m_chip.cmd_age_ms - m_emu.cmd_age_ms <= 0 or \
                 m_emu.cmd_age_ms == 0xFFFF, (m_chip, m_emu)
             m_chip = protocol.Status(m_chip.seq, m_chip.last_cmd_seq, m_emu.cmd_age_ms,
-                                     m_emu.rates, m_chip.faults, m_chip.bad_frames)
+                                     m_emu.rates, m_chip.faults, m_chip.bad_frames,
+                                     m_chip.foreign)
         assert m_chip == m_emu
     acks = [m for _, m in chip if isinstance(m, protocol.Ack)]
-    assert acks == [protocol.Ack(9, protocol.MSG_CMD_VEL, protocol.ACK_OK)]  # not seq 10
-    assert [m for _, m in chip][-1].bad_frames == 1
+    assert acks == [protocol.Ack(9, protocol.MSG_CMD_VEL, protocol.ACK_OK)]  # not 20, 21, 10
+    assert {a for a, _ in chip} == {HOST}
+    statuses = [m for _, m in chip if isinstance(m, protocol.Status)]
+    assert [s.foreign for s in statuses] == [0, 0, 1, 2, 2, 2]   # at 200, 400, ... 1200 ms
+    assert [bool(s.faults & protocol.FAULT_FOREIGN) for s in statuses] == [
+        False, False, True, True, False, False]
+    assert statuses[-1].bad_frames == 1
 
 
 def test_watchdog_stops_the_coils_500_ms_after_the_command(gpsim_run):

@@ -13,6 +13,14 @@ Per robot, every ``poll``:
 - a robot that was moving and loses either input is sent Stop once (the agent watchdog;
   without a camera pose the agent's heading, so the frame of its command, is stale);
 - a board heard from neither status nor ack for ``board_timeout`` counts as silent.
+
+Who is heard: a 0x90 frame from a 64-bit address that is not in the fleet is dropped
+before it is decoded (it never reaches a link, so no agent sees it), counted
+(``unknown_address`` frames, ``unknown_senders`` addresses) and logged once per address.
+A board's status counts the frames *it* dropped because they did not come from the
+coordinator (``foreign``, firmware/PROTOCOL.md): the bridge adds them up per robot
+(``foreign_frames``) and warns once per robot that another transmitter is sending it
+commands.
 """
 
 from __future__ import annotations
@@ -77,6 +85,14 @@ class RobotLink:
     status: protocol.Status | None = None
     counters: Counter = field(default_factory=Counter)
 
+    def note_status(self, status: protocol.Status) -> int:
+        """Keep a board's status; return how many frames the board dropped as foreign
+        since the previous one (its counter is modulo 256 and restarts at power-up)."""
+        previous, self.status = self.status, status
+        if previous is None or status.faults & protocol.FAULT_RESET:
+            return status.foreign
+        return (status.foreign - previous.foreign) & 0xFF
+
 
 class Bridge:
     """Agents' setpoints to XBee frames and board statuses back; see the module doc."""
@@ -87,6 +103,7 @@ class Bridge:
         self._by_address = {r.address: r.id for r in robots}
         self.decoder = xbee.FrameDecoder()
         self.counters: Counter = Counter()
+        self.unknown_senders: Counter = Counter()   # address -> frames dropped
         self.events: list[Event] = []
         self._reported: set[str] = set()
         self._frame_id = 0
@@ -181,8 +198,12 @@ class Bridge:
         agent = self._by_address.get(frame.address)
         if agent is None:
             self.counters['unknown_address'] += 1
-            self._report(f'addr{frame.address:016X}', f'frame from unknown address '
-                         f'{frame.address:016X} ignored; add it to the fleet file')
+            self.unknown_senders[frame.address] += 1
+            self.counters['unknown_senders'] = len(self.unknown_senders)
+            self._report(f'addr{frame.address:016X}', f'frames from XBee {frame.address:016X}'
+                         ', which is not in the fleet, are dropped (counted in '
+                         'unknown_address); if it is one of our robots, add it to the fleet '
+                         'file')
             return None
         link = self.links[agent]
         try:
@@ -194,8 +215,14 @@ class Bridge:
             return None
         self._heard(link, now)
         if isinstance(msg, protocol.Status):
-            link.status = msg
+            foreign = link.note_status(msg)
             link.counters['statuses'] += 1
+            if foreign:
+                link.counters['foreign_frames'] += foreign
+                self.counters['foreign_frames'] += foreign
+                self._report(f'foreign{agent}', f'agent {agent}: its board dropped {foreign} '
+                             'frame(s) from an XBee other than the coordinator: another '
+                             'transmitter is sending it commands (counted in foreign_frames)')
             return agent
         if isinstance(msg, protocol.Ack):
             link.counters['acks'] += 1

@@ -6,6 +6,9 @@ Wiring (logic in bridge.Bridge, codec in xbee, messages and eqs. 5.1-5.3 in prot
   /agent_K/pose         geometry_msgs/PoseStamped (camera) -> watchdog: no pose, no motion
   /agent_K/wheel_states sensor_msgs/JointState             <- board status (wheel m/s)
   /diagnostics          diagnostic_msgs/DiagnosticArray    <- per-robot status and counters
+                        (foreign_frames: frames a board dropped, not from the coordinator;
+                        link: unknown_address / unknown_senders, frames dropped from
+                        XBees not in the fleet)
 
 The serial port is opened with pyserial (``port`` may be a device or a pyserial URL). A
 port that fails or vanishes is closed, logged once with the cause and reopened every
@@ -185,7 +188,8 @@ class BridgeNode(Node):
             values = dict(link.counters)
             if status is not None:
                 values.update(cmd_age_ms=status.cmd_age_ms, faults=status.faults,
-                              bad_frames=status.bad_frames, rates=status.rates)
+                              bad_frames=status.bad_frames, foreign=status.foreign,
+                              rates=status.rates)
             st.values = [KeyValue(key=k, value=str(v)) for k, v in sorted(values.items())]
             array.status.append(st)
         st = DiagnosticStatus(name='swarm_bridge: link', level=DiagnosticStatus.OK,

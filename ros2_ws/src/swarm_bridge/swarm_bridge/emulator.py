@@ -2,18 +2,22 @@
 without hardware.
 
 - :class:`EmulatedBoard` is a Python twin of the firmware (firmware/src/robot.c): it
-  receives escaped 0x90 frames, mixes CmdVel with the fixed-point mixer (eqs. 5.1-5.3,
+  receives escaped 0x90 frames, obeys only those from its ``coordinator`` address (the
+  firmware's SWP_COORDINATOR_ADDR64) and drops the others unanswered, counting them
+  (status ``foreign``, fault FAULT_FOREIGN), mixes CmdVel with the fixed-point mixer (eqs. 5.1-5.3,
   bit-exact with the C), acknowledges, stops its wheels SWP_CMD_TIMEOUT_MS after the last
   valid command and sends a status every SWP_HEARTBEAT_MS, as 0x10 frames. Every
   half-step a wheel takes moves the robot: the board integrates the forward kinematics
   of eqs. 5.1-5.3 (:func:`step_displacement`) into a map-frame pose, which is what the
   overhead camera of thesis 5.1 sees (:mod:`swarm_bridge.hil_world_node` publishes it).
 - :class:`EmulatedRadio` stands for the XBee network: it takes the host's 0x10 frames,
-  delivers them to the board with that 64-bit address (0x8B status 0x24 when there is
-  none, 0x21 when the board is powered off), and hands boards' frames to the host as
-  0x90 frames from their address.
+  delivers them to the board with that 64-bit address as 0x90 frames from the
+  ``coordinator`` address (0x8B status 0x24 when there is none, 0x21 when the board is
+  powered off), and hands boards' frames to the host as 0x90 frames from their address.
+  :meth:`EmulatedRadio.inject` is another XBee in range transmitting to a board.
 - :func:`main` (console script ``robot_emulator``) serves the fleet on a pseudo-terminal
-  whose path it prints: point bridge_node's ``port`` parameter at it.
+  whose path it prints: point bridge_node's ``port`` parameter at it. Its boards obey
+  the fleet file's ``coordinator``, as the firmware built from that file does.
 
 Time is an argument (milliseconds), so tests are deterministic.
 """
@@ -30,7 +34,7 @@ import time
 import tty
 
 from swarm_bridge import protocol, xbee
-from swarm_common.fleet import load_fleet
+from swarm_common.fleet import FleetError, load_coordinator, load_fleet
 
 FIRMWARE_MAX_FRAME_DATA = 18   # SWP_MAX_FRAME_DATA
 BASE_RADIUS_M = 0.06           # wheel contact to robot centre (assumed: the thesis names none)
@@ -62,7 +66,7 @@ class EmulatedBoard:
     """A PIC16F690 board running the firmware's logic; see the module docstring."""
 
     address: int
-    host: int = 0
+    coordinator: int = 0           # the only sender obeyed; statuses and acks go there
     powered: bool = True
     rates: list[int] = field(default_factory=lambda: [0, 0, 0])
     positions: list[int] = field(default_factory=lambda: [0, 0, 0])
@@ -71,6 +75,7 @@ class EmulatedBoard:
     last_cmd_seq: int = 0
     status_seq: int = 0
     commands: int = 0
+    foreign: int = 0               # 0x90 frames dropped: not from the coordinator
     x: float = 0.0                 # map-frame pose (m, m, rad CCW): the camera's view
     y: float = 0.0
     yaw: float = 0.0
@@ -93,14 +98,19 @@ class EmulatedBoard:
             self.faults |= protocol.FAULT_BAD_FRAME
 
     def _send(self, message: protocol.Message) -> None:
-        self._out += xbee.encode(xbee.TxRequest(0, self.host, message.encode()))
+        self._out += xbee.encode(xbee.TxRequest(0, self.coordinator, message.encode()))
 
     def _handle(self, frame_data: bytes) -> None:
-        if frame_data[0] != xbee.API_RX_PACKET or len(frame_data) < xbee.RX_HEADER_LEN + 2:
+        if frame_data[0] != xbee.API_RX_PACKET or len(frame_data) < xbee.RX_HEADER_LEN:
             return
         frame = xbee.parse_api_frame(frame_data)
-        self.host = frame.address
+        if frame.address != self.coordinator:
+            self.foreign += 1            # dropped unanswered, as robot.c's handle_frame
+            self.faults |= protocol.FAULT_FOREIGN
+            return
         data = frame.data
+        if len(data) < 2:
+            return
         try:
             msg = protocol.decode_message(data)
         except protocol.MessageError:
@@ -178,7 +188,7 @@ class EmulatedBoard:
         stats = self._parser.stats
         bad = (stats.bad_checksums + stats.truncated + stats.oversize) & 0xFF
         self._send(protocol.Status(self.status_seq, self.last_cmd_seq, self.cmd_age_ms,
-                                   tuple(self.rates), self.faults, bad))
+                                   tuple(self.rates), self.faults, bad, self.foreign & 0xFF))
         self.status_seq = (self.status_seq + 1) & 0xFF
         self.faults &= protocol.FAULT_STICKY
 
@@ -203,9 +213,16 @@ class EmulatedRadio:
     _to_host: bytearray = field(default_factory=bytearray)
 
     @classmethod
-    def for_fleet(cls, addresses: list[int]) -> EmulatedRadio:
-        """One powered board per address."""
-        return cls({a: EmulatedBoard(a) for a in addresses})
+    def for_fleet(cls, addresses: list[int], coordinator: int = 0) -> EmulatedRadio:
+        """One powered board per address, each built for ``coordinator``."""
+        return cls({a: EmulatedBoard(a, coordinator) for a in addresses}, coordinator)
+
+    def inject(self, source: int, destination: int, data: bytes) -> None:
+        """Another XBee in range, with 64-bit address ``source``, sends RF ``data`` to the
+        board ``destination`` (a rogue transmitter, or a second host)."""
+        board = self.boards.get(destination)
+        if board is not None and board.powered:
+            board.receive(xbee.encode(xbee.RxPacket(source, data)))
 
     def from_host(self, data: bytes) -> None:
         """Bytes the host wrote to its XBee."""
@@ -300,8 +317,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--fleet', default=None, help='fleet YAML (default: package config)')
     parser.add_argument('--period', type=float, default=0.005, help='loop period, s')
     args = parser.parse_args(argv)
-    robots = load_fleet(args.fleet, hardware=True)
-    emulator = PtyEmulator(EmulatedRadio.for_fleet([r.address for r in robots]))
+    try:
+        robots = load_fleet(args.fleet, hardware=True)
+        coordinator = load_coordinator(args.fleet)
+    except FleetError as exc:
+        print(f'robot_emulator: {exc}', file=sys.stderr)
+        return 2
+    emulator = PtyEmulator(EmulatedRadio.for_fleet([r.address for r in robots], coordinator))
     print(f'robot_emulator: {len(robots)} boards on {emulator.port}', flush=True)
     try:
         while True:

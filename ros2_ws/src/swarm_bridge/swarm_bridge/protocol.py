@@ -28,7 +28,7 @@ MSG_STATUS = 0x81
 MSG_ACK = 0x82
 LEN_CMD_VEL = 6
 LEN_STOP = 2
-LEN_STATUS = 13
+LEN_STATUS = 14
 LEN_ACK = 4
 
 ACK_OK = 0
@@ -43,11 +43,12 @@ FAULT_BAD_FRAME = 0x02
 FAULT_RATE_LIMIT = 0x04
 FAULT_UART = 0x08
 FAULT_BAD_MSG = 0x10
+FAULT_FOREIGN = 0x20                 # a frame from another address than the coordinator
 FAULT_RESET = 0x80
 FAULT_STICKY = FAULT_WATCHDOG
 FAULT_NAMES = {FAULT_WATCHDOG: 'watchdog', FAULT_BAD_FRAME: 'bad_frame',
                FAULT_RATE_LIMIT: 'rate_limit', FAULT_UART: 'uart', FAULT_BAD_MSG: 'bad_msg',
-               FAULT_RESET: 'reset'}
+               FAULT_FOREIGN: 'foreign', FAULT_RESET: 'reset'}
 
 # -- units and fixed point ---------------------------------------------------------------
 SPEED_UNITS_PER_M_S = 10000          # 0.1 mm/s per unit
@@ -124,13 +125,14 @@ class Status:
     rates: tuple[int, int, int]      # half-steps per second, signed (wheels A, B, C)
     faults: int
     bad_frames: int
+    foreign: int = 0                 # frames dropped: not from the coordinator (mod 256)
 
     def encode(self) -> bytes:
         """Return the RF data."""
         body = b''.join(r.to_bytes(2, 'big', signed=True) for r in self.rates)
         return (bytes((MSG_STATUS, self.seq & 0xFF, self.last_cmd_seq & 0xFF))
                 + min(self.cmd_age_ms, 0xFFFF).to_bytes(2, 'big') + body
-                + bytes((self.faults, self.bad_frames & 0xFF)))
+                + bytes((self.faults, self.bad_frames & 0xFF, self.foreign & 0xFF)))
 
     def fault_names(self) -> list[str]:
         """Return the names of the fault flags set."""
@@ -180,7 +182,8 @@ def decode_message(data: bytes) -> Message:
         return Ack(data[1], data[2], data[3])
     rates = tuple(int.from_bytes(data[5 + 2 * i:7 + 2 * i], 'big', signed=True)
                   for i in range(3))
-    return Status(data[1], data[2], int.from_bytes(data[3:5], 'big'), rates, data[11], data[12])
+    return Status(data[1], data[2], int.from_bytes(data[3:5], 'big'), rates, data[11], data[12],
+                  data[13])
 
 
 # -- kinematics --------------------------------------------------------------------------

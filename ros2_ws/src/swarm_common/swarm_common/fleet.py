@@ -192,6 +192,30 @@ def load_fleet(path: str | pathlib.Path | None = None, *,
     return out
 
 
+# Never the source address of a received XBee frame (0x90), so never a coordinator's:
+# the coordinator alias (a destination only), broadcast, "64-bit address unknown".
+NOT_A_SENDER = (0x0000000000000000, 0x000000000000FFFF, 0xFFFFFFFFFFFFFFFF)
+
+
+def load_coordinator(path: str | pathlib.Path | None = None) -> int:
+    """The fleet file's ``coordinator``: the 64-bit address (SH + SL) of the XBee on the
+    bridge's serial port, the one sender whose commands the robots obey (the firmware is
+    built with it: firmware/PROTOCOL.md). FleetError when it is missing, not quoted hex,
+    not a sender's address, or a robot's."""
+    path = pathlib.Path(path) if path else HARDWARE_FLEET
+    text = _read(path).get('coordinator')
+    if not isinstance(text, str):
+        raise FleetError(f"fleet file {path} needs coordinator: '<16 hex digits>' (quoted), "
+                         "the SH + SL of the bridge's XBee")
+    value = parse_address(text)
+    if value in NOT_A_SENDER:
+        raise FleetError(f'fleet file {path}: coordinator {text} is not an XBee serial '
+                         "number; give the bridge's XBee's own SH + SL")
+    if value in {r.address for r in load_fleet(path)}:
+        raise FleetError(f"fleet file {path}: coordinator {text} is also a robot's address")
+    return value
+
+
 def load_cover_colors(path: str | pathlib.Path | None = None) -> dict[str, tuple[int, int, int]]:
     """The fleet file's ``cover_colors``: colour name -> RGB 0-255 (thesis 5.1, Fig. 5.2).
 
