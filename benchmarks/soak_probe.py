@@ -6,15 +6,18 @@ shared by k processes counted 1/k times: forked agents share their imported modu
 and CPU time from ``/proc/PID/stat``; the sim clock from the launcher's progress lines
 (``t=  123.4 s  rtf=...``) for the real-time factor; after the run, whether and when the
 swarm settled (thesis eq. 4.1 held for the hold window, ``swarm_sim.metrics``) after
-each shape change, replayed over the launcher's record.npz. No ROS import.
+each shape change, replayed over the launcher's record.npz; ``report`` turns them into
+the soak's figures. No ROS import.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+import json
 import os
 import pathlib
 import re
+import sys
 
 import numpy as np
 
@@ -161,3 +164,61 @@ def plot(path: pathlib.Path, samples: list[dict], change_walls: Sequence[float])
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
+
+
+def report(args, out: pathlib.Path, samples: list[dict], clock, changes: list[dict],
+           code: int) -> int:
+    """Figures of a finished soak: written to OUT/soak.json and OUT/soak.png and printed;
+    the exit code (0: every change applied and settled)."""
+    from swarm_common.shapes import load_shape
+    from swarm_sim.report import dumps
+
+    if len(samples) < 2:
+        print(f'soak: the launcher ended (code {code}) before two samples; see '
+              f'{out / "launch.log"}', file=sys.stderr)
+        return 1
+    walls, sims = zip(*clock)
+    applied = [c for c in changes if c['ok']]
+    warmup = args.change_every if args.warmup is None else args.warmup
+    total = [sum(s['pss'].values()) for s in samples]
+    wall = [s['wall'] for s in samples]
+    figures = {'pss_growth_after_warmup_percent': growth_percent(wall, total, warmup),
+               'warmup_s': warmup, 'pss_first_after_warmup_mib': next(
+                   (p / 2**20 for w, p in zip(wall, total) if w >= warmup), None),
+               'pss_last_mib': total[-1] / 2**20,
+               'cpu_cores_mean': float(np.mean([s['cpu_cores'] for s in samples[1:]])),
+               'real_time_factor': rtf(sims, walls), 'wall_s': wall[-1],
+               'sim_s': sims[-1], 'launcher_exit_code': code}
+    try:
+        record = dict(np.load(out / 'run' / 'record.npz'))
+        hold = json.loads((out / 'run' / 'metrics.json').read_text())['scenario'].get(
+            'settle_hold', 30.0)
+        settling = settling_per_change(record, [c['sim'] for c in applied],
+                                       [load_shape(c['shape']) for c in applied], hold)
+    except (OSError, ValueError, KeyError) as exc:
+        print(f'soak: no settling figures: the run left no readable record ({exc})',
+              file=sys.stderr)
+        settling = []
+    figures['changes'] = settling
+    figures['refused_changes'] = [c for c in changes if not c['ok']]
+    (out / 'soak.json').write_text(dumps({'figures': figures, 'args': vars(args),
+                                          'samples': samples}, indent=1))
+    plot(out / 'soak.png', samples, [c['wall'] for c in applied])
+    print(f'soak: {args.agents} agents composed, {wall[-1] / 60:.1f} min wall, '
+          f'{sims[-1]:.0f} s sim, loss {args.loss:g}')
+    print(f'soak: PSS {figures["pss_first_after_warmup_mib"] or 0:.0f} MiB at '
+          f'{warmup:.0f} s -> {total[-1] / 2**20:.0f} MiB at the end: growth '
+          f'{figures["pss_growth_after_warmup_percent"]:+.2f} %')
+    print(f'soak: CPU {figures["cpu_cores_mean"]:.2f} cores mean, real-time factor '
+          f'{figures["real_time_factor"]:.3f}')
+    for c in settling:
+        print(f'soak: change at {c["time"]:6.0f} s to {c["shape"]}: ' +
+              (f'settled after {c["settling_time"]:.1f} s' if c['settled'] else
+               f'not settled (recorded until {c["recorded_until"]})'))
+    print(f'soak: {out / "soak.json"}, {out / "soak.png"}')
+    for c in figures['refused_changes']:
+        print(f'soak: change to {c["shape"]} at {c["wall"]:.0f} s wall refused: '
+              f'{c["message"]}')
+    return 0 if settling and all(c['settled'] for c in settling) and \
+        len(applied) == len(changes) else 1
+
