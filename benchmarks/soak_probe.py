@@ -44,7 +44,8 @@ def descendants(root: int) -> list[int]:
 
 
 def label(pid: int) -> str:
-    """A short name of a process: the module it runs (``-m module``) or its program."""
+    """A short name of a process: the module it runs (``-m module``), its script or its
+    program, and its pid."""
     try:
         argv = pathlib.Path(f'/proc/{pid}/cmdline').read_bytes().decode(
             errors='replace').split('\0')
@@ -52,9 +53,10 @@ def label(pid: int) -> str:
         return f'pid{pid}'
     if '-m' in argv[:-1]:
         name = argv[argv.index('-m') + 1].rsplit('.', 1)[-1]
+    elif len(argv) > 1 and argv[1].endswith('.py'):
+        name = pathlib.Path(argv[1]).stem
     else:
-        name = next((pathlib.Path(a).stem for a in argv[1:2] if a), pathlib.Path(argv[0]).stem)
-    # Forked agents keep the fork server's command line; their log file tells them apart.
+        name = pathlib.Path(argv[0]).stem
     return f'{name}[{pid}]'
 
 
