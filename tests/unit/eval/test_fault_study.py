@@ -225,3 +225,65 @@ def test_runtime_settings_change_the_medium_as_sim_node_does():
     assert medium.config.loss == pytest.approx(0.3)
     with pytest.raises(ValueError, match='unknown medium setting'):
         apply_setting(medium, 'gravity', 1.0, 0.0, 10.0)
+
+
+def test_rogue_cases_put_the_same_rogue_on_the_headless_and_the_ros_radio(tmp_path, capsys):
+    """A rogue case is the setting ``rogue`` from t = 0 and one non-beacon agent removed
+    at the fault time: headless, the scenario gets the rogue class (sealing bad tags when
+    the swarm authenticates); through ROS, the launcher's --set-sim, which its own parser
+    accepts. rogue_none is the reference without a rogue. --no-auth is headless only."""
+    from swarm_bringup.scenario import parse_set_sim
+    from swarm_sim.rogue import ForgedCostRows, ROGUE_KINDS
+
+    assert set(fault_cases.ROGUE_CASES) <= set(fault_cases.QUICK_CASES)
+    assert {'rogue_none', 'rogue_adverts', 'rogue_replay'} <= set(fault_cases.ROS_CASES)
+    cases = {c['name']: c for c in fault_cases.fault_cases()}
+    assert [cases[f'rogue_{k}']['kind'] for k in ('none', *ROGUE_KINDS)] == ['rogue'] * 5
+    for auth, flags in ((True, []), (False, ['--no-auth'])):
+        config = fault_study.study_config(fault_study.parse_args(['--quick', '--out', 'x',
+                                                                  *flags]))
+        swarm = fault_cases.build_swarm(cases['rogue_costs'], config, 0)
+        assert swarm.scenario.auth is auth
+        t = config['fault_time']
+        assert fault_cases.configure_fault(swarm, cases['rogue_costs'], config, 0) == (t, t)
+        (rogue,) = swarm.scenario.rogues
+        assert isinstance(rogue, ForgedCostRows) and rogue.trailer is auth
+        assert rogue.start_s == 0.0 and not swarm.scenario.events
+        ((when, (victim,)),) = swarm.scenario.removals
+        assert when == t and not swarm.is_beacon[swarm.index[victim]]
+        assert swarm.scenario.min_duration_s == t + config['observe']
+    swarm = fault_cases.build_swarm(cases['rogue_none'], config, 0)
+    fault_cases.configure_fault(swarm, cases['rogue_none'], config, 0)
+    assert swarm.scenario.rogues == () and swarm.scenario.removals == [(t, [victim])]
+    config = fault_ros.ros_config(fault_study.parse_args(['--out', '-', '--ros']))
+    argv, plan = fault_ros.ros_launch_argv(cases['rogue_replay'], config, 0, tmp_path)
+    assert argv[argv.index('--set-sim') + 1] == '0:rogue=3'
+    assert parse_set_sim('0:rogue=3') == (0.0, 'rogue', 3.0)
+    with pytest.raises(Exception, match='1 adverts, 2 costs'):
+        parse_set_sim('0:rogue=7')
+    assert fault_study.main(['--out', str(tmp_path), '--ros', '--no-auth']) == 2
+    assert '--no-auth is for the headless study' in capsys.readouterr().err
+
+
+def test_frames_rejected_by_kind_reach_the_table(tmp_path):
+    """Headless rows carry the metrics' counts; ROS rows the sum of every agent's last
+    status line (counts since the agent started)."""
+    logs = tmp_path / 'logs'
+    logs.mkdir()
+    line = ('[INFO] [1.5] [agent_{a}]: mode NORMAL at (0.26, 0.13); goal 4 (v1, 2 rows); '
+            "router {{'sent': 3}}; rejected frames {r}; radio lag max 0.17 s\n")
+    logs.joinpath('agents.log').write_text(
+        line.format(a=1, r="{'auth_bad_tag': 5}") + line.format(a=2, r='{}')
+        + line.format(a=1, r="{'auth_bad_tag': 9, 'auth_replay': 2}")
+        + line.format(a=3, r="{'auth_replay': 4}"))
+    assert fault_ros.rejected_from_logs(tmp_path) == {'auth_bad_tag': 9, 'auth_replay': 6}
+    assert fault_ros.rejected_from_logs(tmp_path / 'none') is None
+    case = {'name': 'rogue_flood', 'kind': 'rogue', 'value': 'flood'}
+    rows = [{'case': 'rogue_flood', 'passed': True, 'target_applies': True, 'settled': True,
+             'frames_rejected': counts} for counts in ({'auth_bad_tag': 10},
+                                                       {'auth_bad_tag': 20, 'auth_replay': 3})]
+    summary = fault_report.summarise(rows, [case])
+    assert summary['rogue_flood']['frames_rejected'] == {'auth_bad_tag': 15.0,
+                                                         'auth_replay': 1.5}
+    assert '| rejected frames |' in fault_report.markdown_table(summary).splitlines()[0]
+    assert '| bad_tag 15, replay 2 | 2/2 |' in fault_report.markdown_table(summary)

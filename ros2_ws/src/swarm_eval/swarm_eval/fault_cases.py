@@ -9,6 +9,9 @@ Rogue cases (``rogue_KIND``, ``swarm_sim.rogue.ROGUE_KINDS``) put a transmitter 
 the key on the radio from t = 0: the setting ``rogue`` (sim_node's parameter; headless,
 ``Scenario.rogues`` gets the same rogue class). Its frames carry a trailer when the
 swarm authenticates (``config['auth']``, ``--no-auth`` turns it off to show the damage).
+In every rogue case one non-beacon agent is removed at the fault time, so the mission
+must notice a loss through the radio the rogue attacks; ``rogue_none`` is that run
+without a rogue, the reference the others are compared with.
 """
 
 from __future__ import annotations
@@ -28,11 +31,11 @@ from swarm_sim.rogue import make_rogue, ROGUE_KINDS
 LOSSES = (0, 10, 20, 30, 50)
 KILLS = (10, 30)
 RANGES = (12.0, 8.0, 5.0, 3.0)
-ROGUE_CASES = tuple(f'rogue_{k}' for k in ROGUE_KINDS)
+ROGUE_CASES = tuple(f'rogue_{k}' for k in ('none', *ROGUE_KINDS))
 QUICK_CASES = ('loss_0', 'loss_30', 'kill_30', 'beacons_one', 'range_2', 'obstacle',
                *ROGUE_CASES)
 ROS_CASES = ('loss_0', 'loss_20', 'loss_50', 'kill_30', 'beacons_half', 'range_2',
-             'obstacle', 'rogue_adverts', 'rogue_replay')
+             'obstacle', 'rogue_none', 'rogue_adverts', 'rogue_replay')
 
 
 def fault_cases(ranges: tuple[float, ...] = RANGES) -> list[dict[str, Any]]:
@@ -44,7 +47,8 @@ def fault_cases(ranges: tuple[float, ...] = RANGES) -> list[dict[str, Any]]:
     cases.append({'name': 'beacons_half', 'kind': 'beacons', 'value': 0.5})
     cases += [{'name': f'range_{r:g}', 'kind': 'range', 'value': float(r)} for r in ranges]
     cases.append({'name': 'obstacle', 'kind': 'obstacle', 'value': 0.0})
-    cases += [{'name': f'rogue_{k}', 'kind': 'rogue', 'value': k} for k in ROGUE_KINDS]
+    cases += [{'name': f'rogue_{k}', 'kind': 'rogue', 'value': k}
+              for k in ('none', *ROGUE_KINDS)]
     return cases
 
 
@@ -56,7 +60,8 @@ def fault_plan(case: dict, config: dict, seed: int, ids: list[int], beacon_ids: 
     ``removals``: [(time, [agent ids])]; ``settings``: [(time, name, value)] with the
     names of ``swarm_sim.medium.RUNTIME_SETTINGS`` (sim_node's run-time parameters);
     ``first``/``last``: time of the first fault and of the end of the last one.
-    A rogue transmits from t = 0 (setting ``rogue``: 1 + its index in ROGUE_KINDS).
+    A rogue transmits from t = 0 (setting ``rogue``: 1 + its index in ROGUE_KINDS) and
+    one non-beacon agent is removed at the fault time.
     """
     kind, value = case['kind'], case['value']
     t_fault = float(config['fault_time'])
@@ -82,10 +87,12 @@ def fault_plan(case: dict, config: dict, seed: int, ids: list[int], beacon_ids: 
         plan.update(settings=[(t_fault, 'radio_wall_speed_mps', speed)],
                     last=t_fault + 2.0 * half_size / speed)
     elif kind == 'rogue':
-        if value not in ROGUE_KINDS:
+        if value != 'none' and value not in ROGUE_KINDS:
             raise ScenarioError(f'unknown rogue {value!r}; use one of {ROGUE_KINDS}')
-        plan.update(settings=[(0.0, 'rogue', float(ROGUE_KINDS.index(value) + 1))],
-                    first=0.0, last=0.0)
+        victim = int(rng.choice([a for a in ids if a not in set(beacon_ids)] or ids))
+        plan['removals'] = [(t_fault, [victim])]
+        if value != 'none':
+            plan['settings'] = [(0.0, 'rogue', float(ROGUE_KINDS.index(value) + 1))]
     else:
         raise ScenarioError(f'unknown fault kind {kind!r}')
     return plan
