@@ -11,7 +11,7 @@ stops its children and writes its results into OUT/run); from the moment the sim
 runs, every --change-every wall seconds it sets the next shape of --shapes through the
 mission node's swarm/set_shape service (benchmarks/soak_shapes.py). Every --sample wall
 seconds it records the PSS and CPU time of every process of the swarm and the sim clock
-(benchmarks/soak_probe.py), one JSON line per sample in OUT/samples.jsonl, written as it
+(swarm_eval.bench.soak), one JSON line per sample in OUT/samples.jsonl, written as it
 goes. At the end: OUT/soak.json (samples and figures), OUT/soak.png, and the figures
 printed: PSS growth after the warm-up (default: the first change period), mean CPU,
 real-time factor and, per shape change, whether the swarm settled (eq. 4.1 held for the
@@ -30,7 +30,7 @@ import sys
 import threading
 import time
 
-import soak_probe as probe
+from swarm_eval.bench import soak as probe
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 

@@ -1,4 +1,4 @@
-"""benchmarks/soak_probe.py: the soak's figures from first principles (the one-hour run
+"""swarm_eval.bench.soak: the soak's figures from first principles (the one-hour run
 itself is not in CI: docs/soak.md)."""
 
 from __future__ import annotations
@@ -11,10 +11,8 @@ import sys
 
 import numpy as np
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[3] / 'benchmarks'))
-import soak_probe as probe  # noqa: E402
-
-from swarm_common.shapes import load_shape  # noqa: E402
+from swarm_common.shapes import load_shape
+from swarm_eval.bench import soak as probe
 
 
 def test_the_process_tree_and_its_memory_and_cpu_come_from_proc():
