@@ -162,3 +162,36 @@ def test_without_authentication_phantom_cost_rows_take_every_goal(clean):
     moved = np.hypot(*(attacked.positions[-1] - attacked.positions[0]).T)
     assert moved.max() < 0.5                             # parked where placed
     assert attacked.metrics['fraction_inside'] < 0.75
+
+
+def test_the_world_runs_the_rogue_setting_as_sim_node_does():
+    """sim_node's run-time parameter ``rogue`` (World.apply_setting): the rogue hears the
+    medium's deliveries and its frames join the next deliveries, to every living robot."""
+    swarm = HeadlessSwarm(Scenario(shape=load_shape(str(SQUARE)), type_counts={1: 3},
+                                   n_beacons=3, half_size=4.0))
+    world = swarm.world
+    world.rogue_trailer = False               # sim_node's rogue_trailer: agents without auth
+    for _ in range(5):
+        world.step()
+        world.sense()
+    world.apply_setting('rogue', 3.0)
+    (rogue,) = world.rogues
+    assert isinstance(rogue, ReplayFrames) and not rogue.trailer
+    assert rogue.start_s == pytest.approx(world.t)
+    frame = Packet(swarm.ids[0], BROADCAST, int(Kind.HEARTBEAT), 1, 1, b'beat')
+    sent_at = world.t
+    world.medium.transmit(sent_at, frame)
+    replays = []
+    while world.t < sent_at + 2.5:
+        world.step()
+        readings = world.sense()
+        if readings.rogue:
+            replays.append((readings.t, readings.rogue,
+                            [d for d in readings.rx if d[1] in readings.rogue]))
+    ((t, frames, deliveries),) = replays
+    assert frames == [frame] and 2.0 <= t - sent_at <= 2.0 + 0.05   # one step's slack
+    assert deliveries == [(t, frame, list(swarm.ids))]
+    world.apply_setting('rogue', 0.0)
+    assert world.rogues == []
+    with pytest.raises(ValueError, match='rogue must be 0'):
+        world.apply_setting('rogue', 2.5)
