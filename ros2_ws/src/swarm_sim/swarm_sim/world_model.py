@@ -11,8 +11,9 @@
   delivered up to each report, handed out in batches every ``radio_period_s``;
 - the sensors of 4.2 at their periods (``swarm_sim.sensors``): the IMU's mean
   acceleration over its sample period, TOA ranges of every living non-beacon robot to
-  its living beacon neighbours (beacons have GPS; docs/localization.md says why they do
-  not fuse ranges to each other), the beacons' GPS, the proximity scans;
+  its living neighbours, beacons first (beacons have GPS; docs/localization.md says why
+  they do not fuse ranges to each other; the other neighbours are for secondary
+  anchors), the beacons' GPS, the proximity scans;
 - faults: a robot removed (radio and body), its radio off and on, an obstacle moved
   (body and radio shadow), the run-time medium settings of ``RUNTIME_SETTINGS``, a
   rogue transmitter (``rogues``, ``swarm_sim.rogue``: it overhears every delivery and
