@@ -195,3 +195,20 @@ def test_the_world_runs_the_rogue_setting_as_sim_node_does():
     assert world.rogues == []
     with pytest.raises(ValueError, match='rogue must be 0'):
         world.apply_setting('rogue', 2.5)
+
+
+def test_sim_node_parameters_start_a_rogue_or_name_the_bad_value(tmp_path):
+    from swarm_common.fleet import RobotSpec, save_fleet
+    from swarm_sim.sim_parameters import SIM_PARAMETERS, world_from_parameters
+
+    save_fleet(tmp_path / 'fleet.yaml', [RobotSpec(i, 1, i < 3, 2.0 * i, 0.0)
+                                         for i in range(4)])
+    params = {name: spec.default for name, spec in SIM_PARAMETERS.items()}
+    params.update(fleet_file=str(tmp_path / 'fleet.yaml'), backend='pointmass')
+    assert world_from_parameters(params)[2].rogues == []
+    params.update(rogue=2.0, rogue_trailer=False)
+    (rogue,) = world_from_parameters(params)[2].rogues
+    assert isinstance(rogue, ForgedCostRows) and not rogue.trailer
+    params['rogue'] = 1.5
+    with pytest.raises(ValueError, match='rogue must be 0'):
+        world_from_parameters(params)
