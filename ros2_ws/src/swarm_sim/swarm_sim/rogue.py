@@ -51,7 +51,9 @@ from swarm_agent.packet import BROADCAST, Kind, Packet
 from swarm_agent.wire import Advert, encode_adverts, encode_routed, parse_chunk, split_message
 
 ROGUE_KINDS = ('adverts', 'costs', 'replay', 'flood')   # sim_node's ``rogue`` = 1..4
-PHANTOM_BASE = 0xFE00     # phantom agents' addresses: above any fleet id, below BROADCAST
+# Phantom agents' addresses, below BROADCAST and far above the fleets' ids (0..N-1 as the
+# launcher numbers them); a phantom sharing a real id would overwrite that agent's row.
+PHANTOM_BASE = 0xFE00
 _COUNTER = struct.Struct('<Q')
 
 
