@@ -31,7 +31,7 @@ import serial
 
 from swarm_bridge import protocol
 from swarm_bridge.bridge import Bridge, BridgeParams
-from swarm_common.fleet import load_fleet
+from swarm_common.fleet import FleetError, load_coordinator, load_fleet
 from swarm_common.ros_support import run_node
 
 PARAMETERS = {
@@ -95,6 +95,14 @@ class BridgeNode(Node):
         self.create_timer(p['poll_period'], self._on_poll)
         self.create_timer(p['reopen_period'], self._reopen)
         self.create_timer(p['status_period'], self._publish_diagnostics)
+        try:
+            coordinator = f'{load_coordinator(p["fleet_file"] or None):016X}'
+        except FleetError as exc:
+            self.get_logger().warning(f'{exc}: the robots obey only the XBee their firmware '
+                                      'was built for (firmware/PROTOCOL.md)')
+        else:
+            self.get_logger().info(f'the robots obey only XBee {coordinator} (fleet file '
+                                   f'coordinator): it must be the one on {p["port"]}')
         self.get_logger().info(f'bridging agents {[r.id for r in robots]} '
                                f'on {p["port"]} at {p["baud"]} baud')
 
