@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 import dataclasses
+import time
 from typing import Any
 
 import numpy as np
@@ -48,7 +49,8 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
                localization: LocalizationConfig | None = None,
                initial_position_std: float | None = None,
                settings: Mapping[str, Any] | None = None,
-               keyring: Keyring | None = None, auth: bool = True) -> AgentBrain:
+               keyring: Keyring | None = None, auth: bool = True,
+               boot_time_s: float | None = None) -> AgentBrain:
     """An AgentBrain for one robot, with the LQR gains of its type (eqs. 3.108-3.111).
 
     ``initial_position`` is the robot's deployment prior, the position it was configured
@@ -59,6 +61,10 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
     on the brain's configuration last; ParameterError names a bad one.
     Radio frames are authenticated under ``keyring`` (default: ``swarm_keyring()``, the
     development key); ``auth=False`` turns that off, for the with/without comparison.
+    ``boot_time_s`` (s) seeds the first DSDV sequence number so that a restarted agent's
+    numbers are newer than its previous run's (``dsdv.boot_sequence``): None takes the
+    wall clock, which survives a process restart; the headless evaluator passes its
+    simulated time, so its runs stay reproducible.
     """
     types = load_robot_types(robot_types_file)
     robot = robot_type(types, agent_type)
@@ -84,7 +90,8 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
     u_limit = design.u_max + 2.0 * robot.dry_friction * robot.mass * GRAVITY
     frame_auth = FrameAuth(keyring or swarm_keyring()) if auth else None
     return AgentBrain(config, robot, gains, initial_position,
-                      np.random.default_rng(seed), u_max=u_limit, auth=frame_auth)
+                      np.random.default_rng(seed), u_max=u_limit, auth=frame_auth,
+                      boot_time_s=time.time() if boot_time_s is None else boot_time_s)
 
 
 def type_counts_from(spec: str | dict[int, int]) -> dict[int, int]:

@@ -189,14 +189,16 @@ class AgentBrain:
 
     def __init__(self, config: BrainConfig, robot: RobotType, gains: LqrGains,
                  initial_position: Sequence[float], rng: np.random.Generator,
-                 u_max: float | None = None, auth: FrameAuth | None = None) -> None:
+                 u_max: float | None = None, auth: FrameAuth | None = None,
+                 boot_time_s: float = 0.0) -> None:
         """``auth`` seals and opens the radio frames; None: unauthenticated (only for
-        comparisons and tests: ``agent_factory.make_brain`` gives every brain one)."""
+        comparisons and tests: ``agent_factory.make_brain`` gives every brain one).
+        ``boot_time_s`` sets the first DSDV sequence number (``dsdv.boot_sequence``)."""
         self.config = config
         self.auth = auth
         self.robot = robot
         self.rng = rng
-        self.router = DsdvRouter(config.agent_id, config.dsdv)
+        self.router = DsdvRouter(config.agent_id, config.dsdv, boot_time_s)
         self.router.set_heartbeat_info(lambda: self._info().encode())
         self.localizer = Localizer(config.localization, np.asarray(initial_position, float))
         self.loop = VelocityLoop(gains, u_max=u_max)

@@ -7,6 +7,9 @@
   sequence numbers are even and grow with every full dump; a broken link is
   advertised with an infinite metric and the odd sequence number one above the last
   known (3.1.2.3), so it overrides the stale route everywhere.
+- Restarts: the first own number comes from the boot time (``boot_sequence``), so a
+  restarted agent's numbers are newer than those of its previous run, which its
+  neighbours still hold, without storing anything (condition in ``boot_sequence``).
 - Selection rules: a route with a newer sequence number always wins; with the same
   sequence number the smaller hop count wins (3.1.2.1). Sequence numbers make stale
   routes lose, so there is no count-to-infinity. Damping (DSDV's settling concern):
@@ -19,24 +22,19 @@
   FLOOD broadcasts deduplicated by (origin, flood id); messages longer than one frame
   are fragmented and reassembled.
 - Flood relaying by the coverage condition of Wu and Dai's generic broadcast scheme
-  (IEEE Trans. Computers 53(10), 2004), evaluated on two-hop knowledge: the one-hop
-  routes in a neighbour's adverts are its neighbour set. A node stays silent when one
-  connected set of nodes that are either the hop it heard the flood from (it has sent
-  already) or neighbours with a higher id (they decide the same way, so some of them
-  relay) reaches all of its own neighbours. This contains self-pruning (Lim and Kim,
-  2001: the previous hop alone covers them) and Rule k (Dai and Wu, 2003: higher-id
-  neighbours cover them, a connected dominating set). On a connected network without
-  loss every node still gets every flood (tested). For redundancy against packet loss a
-  silent node relays anyway with probability k / (its neighbours), so each neighbourhood
-  hears about k extra copies whatever its density (a fixed share, 15 %, would send 7
-  extra copies of every cost row around each robot of a 50-robot formation, a third of
-  all frames heard). k adapts to the loss the node sees on its neighbours' heartbeats:
-  with loss p, a robot that missed the first copy misses all k(1 - p) copies sent by
-  robots that got it with probability p^(1 + k(1 - p)); k is the least that keeps this
-  under ``flood_miss_target``, and at least ``flood_extra_copies``.
-  Measured on the 50-agent thesis scenario (seed 0, to settling): self-pruning with a
-  15 % share delivers 3.99 million frames, this scheme 1.63 million; in the first 60 s
-  they send 501 and 245 flood frames a second.
+  (IEEE Trans. Computers 53(10), 2004) on two-hop knowledge (the one-hop routes in a
+  neighbour's adverts are its neighbour set): a node stays silent when one connected set
+  of nodes that are the hop it heard the flood from or higher-id neighbours (they decide
+  the same way) reaches all its neighbours; this contains self-pruning (Lim and Kim,
+  2001) and Rule k (Dai and Wu, 2003). On a connected loss-free network every node gets
+  every flood (tested). Against loss a silent node relays anyway with probability
+  k / (its neighbours): each neighbourhood hears about k extra copies whatever its
+  density (a fixed 15 % share sent 7 extra copies of every cost row around each robot
+  of a 50-robot formation). With heartbeat loss p, a robot that missed the first copy
+  misses all k(1 - p) others with probability p^(1 + k(1 - p)); k is the least that
+  keeps this under ``flood_miss_target``, and at least ``flood_extra_copies``.
+  On the 50-agent thesis scenario (seed 0, to settling) self-pruning with a 15 % share
+  delivers 3.99 million frames, this scheme 1.63 million.
 
 Malformed, truncated or unknown frames are counted in ``stats`` and dropped.
 """
@@ -63,6 +61,21 @@ _DATA, _FLOOD = Kind.DATA, Kind.FLOOD
 SEQUENCE_STEP = 2  # own sequence numbers grow by this at every full dump (they stay even)
 SEQUENCE_MASK = 0xFFFFFFFF  # sequence numbers are 32-bit on the wire and wrap around
 _HALF = 1 << 31
+BOOT_RATE = 128  # boot_sequence grows by 2 * BOOT_RATE a second of boot time
+
+
+def boot_sequence(boot_time_s: float) -> int:
+    """The first own sequence number of a router booted at ``boot_time_s`` (s): even,
+    ``2 * round(boot_time_s * BOOT_RATE)`` modulo 2**32 (as frame_auth's counter).
+
+    A run's numbers grow by 2 a full dump (more when it outbids a broken advert, once per
+    break). The restarted run's first number is newer than every number of the run before
+    (serial order, ``seq_newer``) if (a) the clock did not step back across the restart,
+    (b) the previous run grew its number by less than 2 * BOOT_RATE per second of its
+    life (full dumps every 2 s grow it by 1; the config allows at most 100 a second), and
+    (c) less than 2**30 / BOOT_RATE s (97 days) passed between the two boots.
+    """
+    return (2 * int(round(boot_time_s * BOOT_RATE))) & SEQUENCE_MASK
 
 
 def seq_newer(a: int, b: int) -> bool:
@@ -131,26 +144,24 @@ class RouterOutput:
     delivered: list[Delivered] = field(default_factory=list)
 
 
-# What most frames cause: nothing. One shared, read-only instance (a fresh dataclass with
-# two lists per frame would be a tenth of the router's time in the headless evaluator).
-_NOTHING = RouterOutput()
+_NOTHING = RouterOutput()   # what most frames cause: one shared, read-only instance
 
 
 class DsdvRouter:
     """DSDV routing for one agent; see the module docstring."""
 
-    def __init__(self, node_id: int, config: DsdvConfig | None = None) -> None:
+    def __init__(self, node_id: int, config: DsdvConfig | None = None,
+                 boot_time_s: float = 0.0) -> None:
         self.id = int(node_id)
         self.config = config or DsdvConfig()
-        self.sequence = 0                       # own destination sequence number (even)
+        self.sequence = boot_sequence(boot_time_s)  # own sequence number (even)
         self.table: dict[int, RouteEntry] = {}
         self.heard: dict[int, float] = {}       # neighbour -> last time heard
         self.two_hop: dict[int, set[int]] = {}  # neighbour -> its advertised neighbours
         # neighbour -> [last heartbeat time, heartbeats heard, heartbeats sent] (decayed)
         self._beats: dict[int, list[float]] = {}
         self._copies = self.config.flood_extra_copies  # k, renewed at every heartbeat sent
-        # Flood relay decisions depend only on the two-hop view: they are kept until it
-        # changes (a neighbour gained or lost, or a neighbour's set changed).
+        # Flood relay decisions depend only on the two-hop view: kept until it changes.
         self._silent_after: dict[int, bool] = {}  # previous hop -> stay silent?
         self._higher: set[int] | None = None
         self._info: bytes | Callable[[], bytes] = b''
@@ -160,10 +171,7 @@ class DsdvRouter:
         self._next_heartbeat = 0.0
         self._next_full = 0.0
         self._last_incremental = -1e9
-        # tick() runs at the control rate (50 Hz) but rarely has work: the earliest time
-        # a neighbour can time out, and whether any route changed since the last advert,
-        # are kept so that it does not scan every neighbour and route each call (that
-        # scan would be a tenth of the headless evaluator's time).
+        # tick() runs at 50 Hz but rarely has work: kept so it does not scan every call.
         self._next_expiry = math.inf
         self._dirty = False
         self._wake = 0.0   # earliest of the three timers above: before it, tick() is idle
@@ -276,8 +284,7 @@ class DsdvRouter:
         if packet.source == self.id:
             return out
         if not 0 <= packet.source < BROADCAST:
-            # No radio has this address (found by fuzzing: it became a neighbour and every
-            # later full dump failed to encode it).
+            # No radio has this address (fuzzing: it broke every later full dump).
             self._count('rejected_bad_source')
             return out
         if packet.destination not in (self.id, BROADCAST):
@@ -291,10 +298,8 @@ class DsdvRouter:
             self._count('rejected_unknown_kind')
             return out
         if kind is _FLOOD and wire.routed_key(packet.payload) in self._seen:
-            # Many frames a robot hears are copies of floods it has already handled (28 %
-            # of an agent's frames over a 50-agent thesis trial; 93 % with self-pruning
-            # and a 15 % relay share): the drop _on_flood would make, before any other
-            # work.
+            # A copy of a flood already handled (28 % of an agent's frames in a 50-agent
+            # thesis trial): the drop _on_flood would make, before any other work.
             self._count('duplicates')
             return out
         try:
@@ -305,7 +310,7 @@ class DsdvRouter:
                 out = RouterOutput(delivered=[Delivered(packet.source, Kind.HEARTBEAT, info)])
             elif kind is _FULL or kind is _INCREMENTAL:
                 seq, adverts = wire.decode_adverts(packet.payload)
-                self._heard(t, packet.source, None)
+                self._heard(t, packet.source, None, seq)
                 self._learn_neighbourhood(packet.source, adverts)
                 self._merge(packet.source, adverts)
             elif kind is _DATA:
@@ -352,12 +357,14 @@ class DsdvRouter:
         p = min(p, 0.9)
         return max(k, (math.log(self.config.flood_miss_target) / math.log(p) - 1.0) / (1.0 - p))
 
-    def _heard(self, t: float, neighbour: int, seq: int | None) -> None:
+    def _heard(self, t: float, neighbour: int, seq: int | None, dump_seq: int = 0) -> None:
         """Link addition (Fig. 3.8): a neighbour heard directly is a one-hop route.
 
         A heartbeat carries the neighbour's own (even) sequence number. If we had
         marked the route broken (odd number), the direct link is proof enough: the
-        route is restored with the next even number, which outbids the break.
+        route is restored with the next even number, which outbids the break. A dump
+        heard first makes the route a step below the sender's own number (its header),
+        older than its next heartbeat (a fixed 0 could be newer than a boot number).
         """
         if neighbour not in self.heard:
             self._view_changed()
@@ -368,7 +375,8 @@ class DsdvRouter:
         route = self.table.get(neighbour)
         if seq is None:
             if route is None:
-                self.table[neighbour] = RouteEntry(neighbour, neighbour, 1, 0)
+                self.table[neighbour] = RouteEntry(
+                    neighbour, neighbour, 1, _seq_add(dump_seq, -SEQUENCE_STEP))
                 self._dirty = True
             return
         if (route is not None and route.hop_count == 1 and route.next_hop == neighbour
@@ -419,11 +427,9 @@ class DsdvRouter:
     def _covered(self, previous_hop: int) -> bool:
         """Do the previous hop and higher-id neighbours, joined up, reach all neighbours?
 
-        Wu and Dai's coverage condition with two-hop knowledge: every two neighbours of
-        ours must be linked through nodes that have sent the flood (the previous hop) or
-        that rank above us (higher ids). Checked as: one connected group of such nodes
-        whose closed neighbourhoods contain all our neighbours. Hand-written because it
-        runs on the router's own two-hop sets, a few dozen nodes, per view change.
+        Wu and Dai's coverage condition on two-hop knowledge, checked as: one connected
+        group of the previous hop and higher-id neighbours whose closed neighbourhoods
+        contain all our neighbours (a few dozen nodes, per view change).
         """
         sender_reach = self.two_hop.get(previous_hop)
         if sender_reach is None:
@@ -433,10 +439,8 @@ class DsdvRouter:
         if not need:
             return True   # self-pruning: the sender reached every neighbour of ours
         # Rule k joined with the sender: walk from the sender through higher-id neighbours
-        # linked to it, adding what each reaches, until all our neighbours are reached. (A
-        # higher-id group not linked to the sender cannot reach it, our neighbour, so it
-        # never helps.) Links are read from one side, by set intersections in C: a link
-        # one side does not advertise yet only makes this node relay.
+        # linked to it until all our neighbours are reached (a group not linked to the
+        # sender never helps). A link one side does not advertise yet only makes us relay.
         two_hop = self.two_hop
         remaining = self._higher_neighbours() - {previous_hop}
         joined = set(sender_reach)
@@ -497,10 +501,8 @@ class DsdvRouter:
                 continue
             if not (current.next_hop == neighbour or hops <= current.hop_count
                     or current.hop_count >= INFINITE_HOPS or ahead >= stale):
-                # Damping: a newer number that arrived first over a longer path (the
-                # shorter path's frame was lost or is later in its dump cycle) would make
-                # the route flap; the shorter path brings the same number soon. It wins
-                # once the current route is ``stale_generations`` behind.
+                # Damping: a newer number first over a longer path would make the route
+                # flap; the shorter path brings it soon. It wins ``stale_generations`` on.
                 self._count('damped')
                 continue
             self._take(current, neighbour, hops, adv.sequence)
@@ -508,11 +510,9 @@ class DsdvRouter:
     def _take(self, route: RouteEntry, neighbour: int, hops: int, sequence: int) -> None:
         """Adopt a neighbour's advert.
 
-        Adverts carry hops and sequence numbers, not next hops: only a new metric is news
-        worth a triggered update; a newer number alone waits for the next full dump
-        (DSDV's settling rule, Perkins and Bhagwat 1994). Counting next-hop changes made
-        equal-length paths trade places at every dump and sent 2.8 incremental frames per
-        agent a second in the thesis scenario.
+        Only a new metric is news worth a triggered update; a newer number alone waits
+        for the next full dump (DSDV's settling rule, Perkins and Bhagwat 1994; counting
+        next-hop changes sent 2.8 incremental frames per agent a second).
         """
         if route.hop_count != hops:
             route.changed = self._dirty = True

@@ -185,14 +185,8 @@ class HeadlessSwarm:
             settle_hold_s=scenario.settle_hold_s), self.rng, obstacles, self.medium)
         self.alive = self.world.alive
         self.radii = self.world.radii
-        self.brains: list[AgentBrain | None] = [
-            make_brain(agent_id=r.id, agent_type=r.type, is_beacon=r.is_beacon,
-                       method=scenario.method, initial_position=(r.x, r.y),
-                       seed=scenario.seed * 100_003 + r.id,
-                       localization_period_s=scenario.localization_period_s,
-                       initial_position_std=scenario.placement_std_m,
-                       keyring=keyring, auth=scenario.auth)
-            for r in fleet]
+        self._keyring = keyring
+        self.brains: list[AgentBrain | None] = [self._new_brain(r, 0.0) for r in fleet]
         self.mission = Mission(
             MissionConfig(method=scenario.method,
                           seed=scenario.seed if scenario.partition_seed is None
@@ -222,6 +216,41 @@ class HeadlessSwarm:
                 _add_counts(self.rejected, self.brains[i].auth_stats)
                 self.brains[i] = None
                 self.mission.events.append(f't={t:.1f} s: agent {agent} removed')
+
+    # ------------------------------------------------------------------ restarts
+    def _new_brain(self, r: RobotSpec, boot_time_s: float) -> AgentBrain:
+        """Robot ``r``'s brain as its agent node builds it, booted at ``boot_time_s`` of
+        simulated time (the clock of ``dsdv.boot_sequence`` here: runs stay reproducible)."""
+        sc = self.scenario
+        return make_brain(agent_id=r.id, agent_type=r.type, is_beacon=r.is_beacon,
+                          method=sc.method, initial_position=(r.x, r.y),
+                          seed=sc.seed * 100_003 + r.id,
+                          localization_period_s=sc.localization_period_s,
+                          initial_position_std=sc.placement_std_m,
+                          keyring=self._keyring, auth=sc.auth, boot_time_s=boot_time_s)
+
+    def restart(self, t: float, agent_ids: Sequence[int],
+                boot_time_s: float | None = None) -> None:
+        """Agents' processes crash and come back at ``t``: each brain is dropped with all
+        it knew and a fresh one is built with the same id and configuration, booted at
+        ``t``; the robot's body stays where it is. The new brain gets the mission's shape
+        and goals at once, as a respawned agent node gets the transient-local topics.
+        Removed agents stay removed; an id not in the fleet raises ScenarioError.
+        ``boot_time_s`` replaces ``t`` as the boot clock reading (0: a router whose numbers
+        start from 0 at every boot, for the comparison in docs/restarts.md)."""
+        for agent in agent_ids:
+            i = self.index.get(agent)
+            if i is None:
+                raise ScenarioError(f'cannot restart agent {agent}: not in the fleet')
+            if self.brains[i] is None:
+                continue
+            _add_counts(self.rejected, self.brains[i].auth_stats)
+            brain = self.brains[i] = self._new_brain(
+                self.fleet[i], t if boot_time_s is None else boot_time_s)
+            if self.mission.shape is not None:
+                brain.set_shape(self.mission.shape, self.mission.shape_version)
+                brain.set_goals(self.mission.goals, self.mission.goal_version)
+            self.mission.events.append(f't={t:.1f} s: agent {agent} restarted')
 
     # ------------------------------------------------------------------ run
     def run(self, progress: Callable[[float, float], None] | None = None,
@@ -357,6 +386,12 @@ class HeadlessSwarm:
         return TrialRecord(types=self.robot_types, beacons=self.is_beacon,
                            goals=list(self.mission.goals), shapes=self.shapes,
                            metrics=metrics, events=list(self.mission.events), **arrays)
+
+
+def restart_event(agent_ids: Sequence[int]) -> Callable[[HeadlessSwarm, float], None]:
+    """A ``Scenario.events`` hook restarting ``agent_ids``: ``(t, restart_event([7]))``."""
+    ids = tuple(int(a) for a in agent_ids)
+    return lambda swarm, t: swarm.restart(t, ids)
 
 
 def _add_counts(total: dict[str, int], counts: dict[str, int]) -> None:
