@@ -52,7 +52,7 @@ from swarm_bridge.emulator import EmulatedRadio, PtyEmulator
 from swarm_bridge.hil_mesh import HilMesh
 from swarm_bridge.image_msgs import image_to_msg
 from swarm_common import qos
-from swarm_common.fleet import initial_poses, load_cover_colors, load_fleet
+from swarm_common.fleet import initial_poses, load_coordinator, load_cover_colors, load_fleet
 from swarm_common.ros_support import run_node
 from swarm_msgs.msg import RadioPacketArray
 from swarm_sim.medium import MediumConfig
@@ -101,7 +101,9 @@ class HilWorldNode(Node):
             except ValueError as exc:
                 raise ValueError(f'{exc}: set radio_loss, radio_range_m and radio_latency_s '
                                  'in config/hil.yaml or with --ros-args -p') from None
-        self.emulator = PtyEmulator(EmulatedRadio.for_fleet([r.address for r in self.robots]))
+        # The boards obey only the coordinator their firmware was built for (PROTOCOL.md).
+        self.emulator = PtyEmulator(EmulatedRadio.for_fleet(
+            [r.address for r in self.robots], load_coordinator(p['fleet_file'] or None)))
         self.boards = {r.id: self.emulator.radio.boards[r.address] for r in self.robots}
         poses = initial_poses([float(v) for v in p['initial_poses']], self.robots)
         for robot, pose in zip(self.robots, poses):
