@@ -393,6 +393,15 @@ def supervise(args: argparse.Namespace, run: SwarmRun, children: Children, shape
                 pss_due = time.monotonic() + PSS_PERIOD_S
                 summary.peak_pss = max(summary.peak_pss, children.pss_bytes())
             summary.crashed = children.crashed()
+            if summary.crashed == 'sim':
+                # The simulator owns the clock and is never respawned: the run ends here,
+                # with what was recorded so far (docs/restarts.md).
+                summary.outcome = 'crash of sim'
+                print(f'\nlaunch_swarm: the simulator exited with code '
+                      f'{children.procs["sim"].returncode} at t = {summary.t:.1f} s; the run '
+                      f'ends with its record so far (log: {children.log_dir / "sim.log"})',
+                      file=sys.stderr)
+                break
             if summary.crashed:
                 summary.outcome = f'crash of {summary.crashed}'
                 print(f'\nlaunch_swarm: {summary.crashed} exited with code '
