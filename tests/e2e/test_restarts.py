@@ -155,6 +155,14 @@ def test_a_killed_agent_process_is_back_in_every_route_table(processes, tmp_path
         assert _until(fresh, 30.0, proc), watch.route_to(3)
         print(f'agent 3 back in every route table {time.monotonic() - killed:.1f} s '
               f'after SIGKILL (sequence {old} -> {min(s for _, s in watch.route_to(3).values())})')
+
+        def assigned() -> bool:   # the new agent 3 has the goals (transient local) again
+            with watch.lock:
+                goals = [s.assigned_goal for s in watch.states.values()]
+                fresh_state = watch.states[3].header.stamp.sec > stamp
+            return fresh_state and -1 not in goals and len(set(goals)) == AGENTS
+        stamp = watch.states[3].header.stamp.sec + 5
+        assert _until(assigned, 30.0, proc), watch.states
     metrics = _stop(proc, out)
     assert metrics['outcome'] == 'interrupted'
     assert (out / 'logs' / 'agent_3.run1.log').is_file()
