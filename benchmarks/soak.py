@@ -5,17 +5,14 @@
   scripts/env.sh python benchmarks/soak.py --agents 12 --duration 180 \\
       --change-every 60 --out /tmp/soak_short                     # a 3-minute try
 
-Runs scripts/launch_swarm.py (composed agents, real-time factor target 1, radio loss
---loss from t = 0) until --duration wall seconds have passed (then SIGINT: the launcher
-stops its children and writes its results into OUT/run); from the moment the sim clock
-runs, every --change-every wall seconds it sets the next shape of --shapes through the
-mission node's swarm/set_shape service (benchmarks/soak_shapes.py). Every --sample wall
-seconds it records the PSS and CPU time of every process of the swarm and the sim clock
-(swarm_eval.bench.soak), one JSON line per sample in OUT/samples.jsonl, written as it
-goes. At the end: OUT/soak.json (samples and figures), OUT/soak.png, and the figures
-printed: PSS growth after the warm-up (default: the first change period), mean CPU,
-real-time factor and, per shape change, whether the swarm settled (eq. 4.1 held for the
-hold window) and how long after the change.
+Runs scripts/launch_swarm.py (composed, real-time factor target 1, radio loss --loss)
+for --duration wall seconds (then SIGINT: the launcher writes OUT/run); once the sim
+clock runs, every --change-every wall seconds the next shape of --shapes through the
+mission node's swarm/set_shape (soak_shapes.py). Every --sample s: PSS, USS and CPU of
+every process of the swarm and the sim clock (swarm_eval.bench.soak) into
+OUT/samples.jsonl, changes into OUT/changes.jsonl, as they happen. At the end: OUT/soak.json,
+OUT/soak.png and the figures printed (memory growth after the warm-up, default the first
+change period; mean CPU; real-time factor; per change, settled (eq. 4.1) and when).
 """
 
 from __future__ import annotations
@@ -49,6 +46,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help='wall seconds before the PSS baseline (default: --change-every)')
     p.add_argument('--no-record', action='store_true', help='no MCAP bag of the topics')
     p.add_argument('--domain', type=int, default=150 + os.getpid() % 80, help='ROS domain')
+    p.add_argument('--report-only', action='store_true',
+                   help="the figures again from OUT's samples.jsonl and changes.jsonl")
     p.add_argument('--out', required=True)
     args = p.parse_args(argv)
     if not (args.duration > 0 and args.change_every > 0 and args.sample > 0
@@ -70,6 +69,10 @@ def launch_command(args: argparse.Namespace, first: str, run: pathlib.Path) -> l
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     out = pathlib.Path(args.out).resolve()
+    if args.report_only:
+        samples, changes = ([json.loads(line) for line in open(out / name, encoding='utf-8')]
+                            for name in ('samples.jsonl', 'changes.jsonl'))
+        return probe.report(args, out, samples, changes, None)
     out.mkdir(parents=True, exist_ok=True)
     shapes = [s.strip() for s in args.shapes.split(',') if s.strip()]
     cmd = launch_command(args, shapes[0], out / 'run')
@@ -89,6 +92,8 @@ def main(argv: list[str] | None = None) -> int:
                 clock.append((time.monotonic() - wall0, t))
 
     changes = [{'shape': shapes[0], 'sim': 0.0, 'wall': 0.0, 'ok': True}]
+    changes_file = open(out / 'changes.jsonl', 'w', encoding='utf-8')  # noqa: SIM115
+    changes_file.write(json.dumps(changes[0]) + '\n')
 
     def change_shapes() -> None:
         from soak_shapes import ShapeChanger
@@ -98,13 +103,15 @@ def main(argv: list[str] | None = None) -> int:
             time.sleep(0.5)
         start = time.monotonic() - wall0
         # No change in the last half period: it could not settle before the end.
-        last = int((args.duration - 0.5 * args.change_every - start) // args.change_every)
-        for k in range(1, last + 1):
+        count = int((args.duration - 0.5 * args.change_every - start) // args.change_every)
+        for k in range(1, count + 1):
             time.sleep(max(0.0, start + k * args.change_every - (time.monotonic() - wall0)))
             if proc.poll() is not None:
                 break
             wall = time.monotonic() - wall0
             changes.append({**changer.change(shapes[k % len(shapes)]), 'wall': wall})
+            changes_file.write(json.dumps(changes[-1]) + '\n')
+            changes_file.flush()
             print(f'soak: {wall:.0f} s wall: {changes[-1]}', flush=True)
         changer.close()
 
@@ -122,25 +129,25 @@ def main(argv: list[str] | None = None) -> int:
                 break
             if samples and wall - samples[-1]['wall'] < args.sample:
                 continue
-            pss, cpu, used = {}, {}, 0.0
+            pss, uss, cpu, used = {}, {}, {}, 0.0
             for pid in probe.descendants(proc.pid):
-                size, seconds = probe.pss_bytes(pid), probe.cpu_seconds(pid)
+                size, seconds = probe.memory(pid), probe.cpu_seconds(pid)
                 if size is None or seconds is None:
                     continue
-                pss[probe.label(pid)] = size
+                pss[probe.label(pid)], uss[probe.label(pid)] = size
                 cpu[pid] = seconds
                 used += seconds - cpu_before.get(pid, 0.0)
             span = wall - (samples[-1]['wall'] if samples else 0.0)
             now = clock[-1]
             rate = (now[1] - last[1]) / (now[0] - last[0]) if now[0] > last[0] else 0.0
-            samples.append({'wall': wall, 'sim': now[1], 'pss': pss,
+            samples.append({'wall': wall, 'sim': now[1], 'pss': pss, 'uss': uss,
                             'cpu_cores': used / span, 'rtf': rate})
             cpu_before, last = cpu, now
             jsonl.write(json.dumps(samples[-1]) + '\n')
             jsonl.flush()
     code = proc.wait()
     time.sleep(1.0)     # the reader's last lines
-    return probe.report(args, out, samples, clock, changes, code)
+    return probe.report(args, out, samples, changes, code)
 
 
 if __name__ == '__main__':

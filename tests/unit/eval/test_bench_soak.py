@@ -10,6 +10,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from swarm_common.shapes import load_shape
 from swarm_eval.bench import soak as probe
@@ -21,13 +22,13 @@ def test_the_process_tree_and_its_memory_and_cpu_come_from_proc():
         tree = probe.descendants(os.getpid())
         assert os.getpid() in tree and child.pid in tree
         assert probe.label(child.pid) == f'{pathlib.Path(sys.executable).stem}[{child.pid}]'
-        pss = probe.pss_bytes(os.getpid())
-        assert pss is not None and pss > 1e6          # this Python holds numpy: MBs
+        pss, uss = probe.memory(os.getpid())
+        assert 1e6 < uss <= pss          # this Python holds numpy: MBs, some of them shared
         assert probe.cpu_seconds(os.getpid()) > 0.0
     finally:
         child.kill()
         child.wait()
-    assert probe.pss_bytes(child.pid) is None and probe.cpu_seconds(child.pid) is None
+    assert probe.memory(child.pid) is None and probe.cpu_seconds(child.pid) is None
 
 
 def test_sim_time_is_read_from_the_launchers_progress_line():
@@ -65,3 +66,12 @@ def test_settling_per_change_replays_eq_4_1_in_each_segment():
     assert got[0]['settled'] and got[0]['settling_time'] == 10.0
     assert not got[1]['settled'] and got[1]['settling_time'] is None
     assert got[1]['recorded_until'] == 99.5
+
+
+def test_growth_by_process_names_each_process_present_since_the_warm_up():
+    a = [10, 100, 100, 110, 110, 110]
+    samples = [{'wall': 300 * k, 'pss': {'a': a[k], 'b': 50} if k else {'a': a[0]}}
+               for k in range(6)]
+    samples[-1]['pss']['c'] = 5           # started late: no growth to report
+    assert probe.by_process_growth(samples, 'pss', 300) == {
+        'a': pytest.approx(10.0), 'b': 0.0}

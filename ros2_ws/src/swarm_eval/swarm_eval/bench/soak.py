@@ -2,12 +2,12 @@
 
 Per process of a running swarm (the launcher and every descendant, found through
 /proc): proportional set size from ``/proc/PID/smaps_rollup`` (resident pages, each page
-shared by k processes counted 1/k times: forked agents share their imported modules)
-and CPU time from ``/proc/PID/stat``; the sim clock from the launcher's progress lines
-(``t=  123.4 s  rtf=...``) for the real-time factor; after the run, whether and when the
-swarm settled (thesis eq. 4.1 held for the hold window, ``swarm_sim.metrics``) after
-each shape change, replayed over the launcher's record.npz; ``report`` turns them into
-the soak's figures. No ROS import.
+shared by k processes counted 1/k times: forked agents share their imported modules),
+unique set size (private pages) and CPU time from ``/proc/PID/stat``; the sim clock
+from the launcher's progress lines (``t=  123.4 s  rtf=...``) for the real-time factor;
+after the run, whether and when the swarm settled (thesis eq. 4.1 held for the hold
+window, ``swarm_sim.metrics``) after each shape change, replayed over the launcher's
+record.npz; ``report`` turns them into the soak's figures. No ROS import.
 """
 
 from __future__ import annotations
@@ -60,16 +60,20 @@ def label(pid: int) -> str:
     return f'{name}[{pid}]'
 
 
-def pss_bytes(pid: int) -> int | None:
-    """The process's proportional set size, or None once it has gone."""
+def memory(pid: int) -> tuple[int, int] | None:
+    """The process's proportional set size (PSS) and unique set size (USS: its private
+    pages, clean and dirty), in bytes, or None once it has gone. PSS also moves when
+    other processes map or unmap the same libraries (on a shared machine: other
+    people's Python and ROS processes); USS does not, so a leak shows in both."""
     try:
         text = pathlib.Path(f'/proc/{pid}/smaps_rollup').read_text()
     except OSError:
         return None
-    for line in text.splitlines():
-        if line.startswith('Pss:'):
-            return int(line.split()[1]) * 1024
-    return None
+    kb = {line.split(':')[0]: int(line.split()[1]) for line in text.splitlines()
+          if line.startswith(('Pss:', 'Private_Clean:', 'Private_Dirty:'))}
+    if 'Pss' not in kb:
+        return None
+    return kb['Pss'] * 1024, (kb.get('Private_Clean', 0) + kb.get('Private_Dirty', 0)) * 1024
 
 
 def cpu_seconds(pid: int) -> float | None:
@@ -168,10 +172,20 @@ def plot(path: pathlib.Path, samples: list[dict], change_walls: Sequence[float])
     plt.close(fig)
 
 
-def report(args, out: pathlib.Path, samples: list[dict], clock, changes: list[dict],
-           code: int) -> int:
-    """Figures of a finished soak: written to OUT/soak.json and OUT/soak.png and printed;
-    the exit code (0: every change applied and settled)."""
+def by_process_growth(samples: list[dict], key: str, warmup_s: float) -> dict[str, float]:
+    """``growth_percent`` of each process present from the warm-up to the end."""
+    wall = [s['wall'] for s in samples]
+    names = [n for n in samples[-1].get(key, {})
+             if all(n in s.get(key, {}) for s in samples if s['wall'] >= warmup_s)]
+    return {n: growth_percent(wall, [s[key].get(n, np.nan) for s in samples], warmup_s)
+            for n in names}
+
+
+def report(args, out: pathlib.Path, samples: list[dict], changes: list[dict],
+           code: int | None) -> int:
+    """Figures of a finished soak from its samples and shape changes (each: shape, sim
+    and wall time sent, ok): written to OUT/soak.json and OUT/soak.png and printed; the
+    exit code (0: every change applied and settled)."""
     from swarm_common.shapes import load_shape
     from swarm_sim.report import dumps
 
@@ -179,18 +193,22 @@ def report(args, out: pathlib.Path, samples: list[dict], clock, changes: list[di
         print(f'soak: the launcher ended (code {code}) before two samples; see '
               f'{out / "launch.log"}', file=sys.stderr)
         return 1
-    walls, sims = zip(*clock)
     applied = [c for c in changes if c['ok']]
     warmup = args.change_every if args.warmup is None else args.warmup
-    total = [sum(s['pss'].values()) for s in samples]
     wall = [s['wall'] for s in samples]
-    figures = {'pss_growth_after_warmup_percent': growth_percent(wall, total, warmup),
-               'warmup_s': warmup, 'pss_first_after_warmup_mib': next(
-                   (p / 2**20 for w, p in zip(wall, total) if w >= warmup), None),
-               'pss_last_mib': total[-1] / 2**20,
-               'cpu_cores_mean': float(np.mean([s['cpu_cores'] for s in samples[1:]])),
-               'real_time_factor': rtf(sims, walls), 'wall_s': wall[-1],
-               'sim_s': sims[-1], 'launcher_exit_code': code}
+    figures: dict = {'warmup_s': warmup, 'wall_s': wall[-1], 'sim_s': samples[-1]['sim'],
+                     'launcher_exit_code': code}
+    for key in ('pss', 'uss'):
+        if all(key in s for s in samples):
+            total = [sum(s[key].values()) for s in samples]
+            figures[f'{key}_growth_after_warmup_percent'] = growth_percent(wall, total, warmup)
+            figures[f'{key}_after_warmup_mib'] = next(
+                (p / 2**20 for w, p in zip(wall, total) if w >= warmup), None)
+            figures[f'{key}_last_mib'] = total[-1] / 2**20
+            figures[f'{key}_growth_by_process_percent'] = by_process_growth(
+                samples, key, warmup)
+    figures.update(cpu_cores_mean=float(np.mean([s['cpu_cores'] for s in samples[1:]])),
+                   real_time_factor=rtf([s['sim'] for s in samples], wall))
     try:
         record = dict(np.load(out / 'run' / 'record.npz'))
         hold = json.loads((out / 'run' / 'metrics.json').read_text())['scenario'].get(
@@ -204,23 +222,27 @@ def report(args, out: pathlib.Path, samples: list[dict], clock, changes: list[di
     figures['changes'] = settling
     figures['refused_changes'] = [c for c in changes if not c['ok']]
     (out / 'soak.json').write_text(dumps({'figures': figures, 'args': vars(args),
-                                          'samples': samples}, indent=1))
+                                          'changes': changes, 'samples': samples},
+                                         indent=1))
     plot(out / 'soak.png', samples, [c['wall'] for c in applied])
     print(f'soak: {args.agents} agents composed, {wall[-1] / 60:.1f} min wall, '
-          f'{sims[-1]:.0f} s sim, loss {args.loss:g}')
-    print(f'soak: PSS {figures["pss_first_after_warmup_mib"] or 0:.0f} MiB at '
-          f'{warmup:.0f} s -> {total[-1] / 2**20:.0f} MiB at the end: growth '
-          f'{figures["pss_growth_after_warmup_percent"]:+.2f} %')
+          f'{figures["sim_s"]:.0f} s sim, loss {args.loss:g}')
+    for key in ('pss', 'uss'):
+        if f'{key}_last_mib' in figures:
+            print(f'soak: {key.upper()} {figures[f"{key}_after_warmup_mib"] or 0:.0f} MiB at '
+                  f'{warmup:.0f} s -> {figures[f"{key}_last_mib"]:.0f} MiB at the end: growth '
+                  f'{figures[f"{key}_growth_after_warmup_percent"]:+.2f} % (by process: ' +
+                  ', '.join(f'{n} {g:+.1f} %' for n, g in
+                            figures[f'{key}_growth_by_process_percent'].items()) + ')')
     print(f'soak: CPU {figures["cpu_cores_mean"]:.2f} cores mean, real-time factor '
           f'{figures["real_time_factor"]:.3f}')
     for c in settling:
-        print(f'soak: change at {c["time"]:6.0f} s to {c["shape"]}: ' +
+        print(f'soak: change at {c["time"]:6.0f} s sim to {c["shape"]}: ' +
               (f'settled after {c["settling_time"]:.1f} s' if c['settled'] else
                f'not settled (recorded until {c["recorded_until"]})'))
-    print(f'soak: {out / "soak.json"}, {out / "soak.png"}')
     for c in figures['refused_changes']:
         print(f'soak: change to {c["shape"]} at {c["wall"]:.0f} s wall refused: '
               f'{c["message"]}')
+    print(f'soak: {out / "soak.json"}, {out / "soak.png"}')
     return 0 if settling and all(c['settled'] for c in settling) and \
         len(applied) == len(changes) else 1
-
