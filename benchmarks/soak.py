@@ -45,7 +45,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument('--warmup', type=float, default=None,
                    help='wall seconds before the PSS baseline (default: --change-every)')
     p.add_argument('--no-record', action='store_true', help='no MCAP bag of the topics')
-    p.add_argument('--domain', type=int, default=150 + os.getpid() % 80, help='ROS domain')
+    p.add_argument('--domain', type=int, default=None,
+                   help='ROS domain (default: a free one, swarm_common.domains)')
     p.add_argument('--report-only', action='store_true',
                    help="the figures again from OUT's samples.jsonl and changes.jsonl")
     p.add_argument('--out', required=True)
@@ -74,6 +75,9 @@ def main(argv: list[str] | None = None) -> int:
                             for name in ('samples.jsonl', 'changes.jsonl'))
         return probe.report(args, out, samples, changes, None)
     out.mkdir(parents=True, exist_ok=True)
+    if args.domain is None:
+        from swarm_common.domains import claim_domain
+        args.domain, domain_lock = claim_domain(start=os.getpid())   # held to the end
     shapes = [s.strip() for s in args.shapes.split(',') if s.strip()]
     cmd = launch_command(args, shapes[0], out / 'run')
     (out / 'command.txt').write_text(' '.join(cmd) + '\n')

@@ -68,6 +68,7 @@ from swarm_bringup.hil import (
 )
 from swarm_bringup.launch_plan import counts_of, type_counts_text
 from swarm_bringup.launcher import Children
+from swarm_common.domains import claim_domain, DomainError
 
 
 class Monitor:
@@ -271,11 +272,19 @@ def main(argv: list[str] | None = None) -> int:
     out = pathlib.Path(args.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
     shapes = SHAPES if args.shape == 'all' else (args.shape,)
-    base = args.domain if args.domain is not None else 101 + (os.getpid() % 60) * 2
     results = []
     for i, name in enumerate(shapes):
         # a domain per shape: a late packet of the previous run can never reach this one
-        results.append(run_shape(name, out, args, (base + i) % 233))
+        if args.domain is not None:
+            results.append(run_shape(name, out, args, (args.domain + i) % 233))
+            continue
+        try:
+            domain, lock = claim_domain(start=os.getpid() + i)
+        except DomainError as exc:
+            print(f'hil_demo.py: {exc}', file=sys.stderr)
+            return 2
+        with lock:
+            results.append(run_shape(name, out, args, domain))
         (out / 'hil.json').write_text(json.dumps(
             {'command': ' '.join(['scripts/hil_demo.py', *(argv or sys.argv[1:])]),
              'results': results}, indent=2, default=float))

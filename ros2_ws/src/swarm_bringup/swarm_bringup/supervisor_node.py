@@ -281,6 +281,9 @@ def _check_stop() -> None:
         raise KeyboardInterrupt
 
 
+_HELD_LOCKS: list = []
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     # SIGTERM (a supervisor, a timeout) stops the run like Ctrl-C: children stopped,
@@ -309,7 +312,15 @@ def main(argv: list[str] | None = None) -> int:
     (out / 'logs').mkdir(parents=True, exist_ok=True)
     fleet_file = out / 'fleet.yaml'
     save_fleet(fleet_file, fleet)
-    domain = args.domain if args.domain is not None else 1 + (os.getpid() % 100)
+    domain = args.domain
+    if domain is None:
+        from swarm_common.domains import claim_domain, DomainError
+        try:
+            domain, lock = claim_domain(start=os.getpid())
+        except DomainError as exc:
+            print(f'launch_swarm.py: {exc}', file=sys.stderr)
+            return 2
+        _HELD_LOCKS.append(lock)   # the domain stays this run's until the process ends
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain),
                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
     os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
