@@ -51,7 +51,7 @@ from swarm_agent.dsdv import DsdvConfig, DsdvRouter
 from swarm_agent.forces import ForceParams, formation_force
 from swarm_agent.frame_auth import FrameAuth
 from swarm_agent.free_space import grow_obstacles
-from swarm_agent.localization import LocalizationConfig, Localizer, Mode
+from swarm_agent.localization import anchor_ranges, LocalizationConfig, Localizer, Mode
 from swarm_agent.lqr import LqrGains, VelocityLoop
 from swarm_agent.mesh_messages import (
     CostRow,
@@ -417,13 +417,10 @@ class AgentBrain:
                              self._is_anchor(self._last_t or 0.0))
 
     def _is_anchor(self, t: float) -> bool:
-        """A secondary anchor (localization.py): parked long enough to stand still,
-        confident, and localized from beacons alone since its last full fix."""
-        loc = self.localizer
-        return (loc.config.secondary_anchors and not self.config.is_beacon
-                and loc.beacon_only and self._parked_since is not None
-                and t - self._parked_since >= self.config.stand_still_after_s
-                and loc.worst_std <= loc.config.anchor_max_std)
+        """A secondary anchor (localization.py); beacons are primary ones."""
+        parked = None if self._parked_since is None else t - self._parked_since
+        return not self.config.is_beacon and self.localizer.is_anchor(
+            parked, self.config.stand_still_after_s)
 
     def _fresh_neighbours(self, t: float) -> dict[int, NeighbourInfo]:
         stale = [k for k, n in self.neighbours.items()
@@ -438,27 +435,10 @@ class AgentBrain:
         beacons, anchors = [], []
         if t - self._ranges_at <= self.config.range_stale_s:
             self._fresh_neighbours(t)
-            inflation = math.sqrt(self.config.localization.beacon_variance_inflation)
-            use_anchors = (self.config.localization.secondary_anchors
-                           and not self._is_anchor(t))
-            for anchor_id, rng_m, std in self._ranges:
-                heard = self.neighbours.get(anchor_id)
-                if heard is None:
-                    continue
-                info = heard.info
-                if info.is_beacon and info.mode == Mode.NORMAL:
-                    into = beacons
-                elif use_anchors and info.anchor and not info.is_beacon:
-                    into = anchors
-                else:
-                    continue
-                # Where the anchor was when the range was measured: its last heartbeat
-                # extrapolated with its own velocity estimate. Its own position
-                # uncertainty adds to the range noise, inflated for its persistence
-                # (LocalizationConfig.beacon_variance_inflation).
-                lag = self._ranges_at - heard.heard_at
-                where = np.asarray(info.position) + lag * np.asarray(info.velocity)
-                into.append((where, rng_m, math.hypot(std, info.position_std * inflation)))
+            beacons, anchors = anchor_ranges(
+                self._ranges, self.neighbours, self._ranges_at,
+                self.config.localization.beacon_variance_inflation,
+                self.config.localization.secondary_anchors and not self._is_anchor(t))
         self.localizer.localize(t, beacons,
                                 self.localizer.position - self._position_at_ranges,
                                 secondary=anchors)

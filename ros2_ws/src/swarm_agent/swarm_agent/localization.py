@@ -30,10 +30,12 @@ localization (NORMAL), as one with enough beacons does.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 import enum
 import logging
+import math
+from typing import Any
 
 import numpy as np
 from scipy.special import chdtri
@@ -44,6 +46,7 @@ from swarm_common.parameters import tunable
 
 LOG = logging.getLogger(__name__)
 MG = 9.80665e-3  # m/s^2 per milli-g
+Anchor = tuple[np.ndarray, float, float]   # position (m), range (m), range std (m)
 GATE_1DOF = 10.83  # chi-square (1 dof, 99.9 %)
 # A range's Jacobian is the unit vector to its beacon, known within about one deviation
 # of the prior over the range (radians): a range update needs it within 0.25 rad.
@@ -123,6 +126,39 @@ def _usable(anchors: Sequence[tuple[np.ndarray, float, float]]
             if np.all(np.isfinite(p)) and np.isfinite(r) and np.isfinite(s) and s > 0]
 
 
+def anchor_ranges(ranges: Sequence[tuple[int, float, float]], neighbours: Mapping[int, Any],
+                  ranges_at: float, inflation: float, use_anchors: bool
+                  ) -> tuple[list[Anchor], list[Anchor]]:
+    """(beacons, secondary anchors) of a tick: (position, range, std) for each range
+    (id, metres, std) to a neighbour heard (``neighbours``: id -> its last heartbeat's
+    ``info`` and ``heard_at``) that is a localized beacon, or, with ``use_anchors``, an
+    agent advertising itself as a secondary anchor.
+
+    Where the anchor was when the range was measured: its last heartbeat extrapolated
+    with its own velocity estimate. Its own position uncertainty, inflated by
+    ``inflation`` (``beacon_variance_inflation``: the error persists), adds to the range
+    noise.
+    """
+    beacons: list[Anchor] = []
+    anchors: list[Anchor] = []
+    scale = math.sqrt(inflation)
+    for anchor_id, rng_m, std in ranges:
+        heard = neighbours.get(anchor_id)
+        if heard is None:
+            continue
+        info = heard.info
+        if info.is_beacon and info.mode == Mode.NORMAL:
+            into = beacons
+        elif use_anchors and info.anchor and not info.is_beacon:
+            into = anchors
+        else:
+            continue
+        where = np.asarray(info.position) + (ranges_at - heard.heard_at) * np.asarray(
+            info.velocity)
+        into.append((where, rng_m, math.hypot(std, info.position_std * scale)))
+    return beacons, anchors
+
+
 def _ranges_only(beacons: np.ndarray, ranges: np.ndarray, std: float, fallback):
     """The fix from the ranges alone (eqs. 3.8-3.17 and Gauss-Newton, no prior)."""
     try:
@@ -173,6 +209,15 @@ class Localizer:
     @property
     def covariance(self) -> np.ndarray:
         return self.kf.P[:4, :4]
+
+    def is_anchor(self, parked_for: float | None, stand_still_after_s: float) -> bool:
+        """Serves as a secondary anchor (module docstring): parked for ``parked_for`` s
+        (None: moving), at least ``stand_still_after_s`` (its zero-velocity updates have
+        begun), beacon-only and confident. Beacons are primary anchors: the caller
+        excludes them."""
+        return (self.config.secondary_anchors and self.beacon_only
+                and parked_for is not None and parked_for >= stand_still_after_s
+                and self.worst_std <= self.config.anchor_max_std)
 
     @property
     def worst_std(self) -> float:
