@@ -59,7 +59,8 @@ def measure_rejoin(spec: ScenarioSpec, seed: int, agent_index: int, restart_s: f
                    half_size: float | None = None) -> Rejoin:
     """Run one trial with one restart and measure the rejoin (module docstring).
 
-    ``agent_index`` picks the agent among the non-beacons (modulo their count);
+    ``agent_index`` picks the agent among the non-beacons (all agents when every one is
+    a beacon), modulo their count;
     ``half_size`` (m) overrides the deployment area's half width (default 50).
     """
     scenario = build_scenario(spec, seed)
@@ -68,7 +69,7 @@ def measure_rejoin(spec: ScenarioSpec, seed: int, agent_index: int, restart_s: f
     scenario.duration_s = restart_s + horizon_s
     scenario.min_duration_s = scenario.duration_s   # never stop settled before the end
     swarm = HeadlessSwarm(scenario)
-    movers = [a for a, b in zip(swarm.ids, swarm.is_beacon) if not b]
+    movers = [a for a, b in zip(swarm.ids, swarm.is_beacon) if not b] or list(swarm.ids)
     agent = movers[agent_index % len(movers)]
     i = swarm.index[agent]
     state: dict = {}
