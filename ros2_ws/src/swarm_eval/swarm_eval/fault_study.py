@@ -32,7 +32,8 @@ Writes into --out: ``faults.json`` (config, every trial, per-case means), ``faul
 (markdown table) and ``faults.png`` (bars per case).
 
 Example (default: 20 agents, 4 beacons, circle_314, +/-25 m, 2 seeds, about 5 min on
-2 cores; ``ros2 run swarm_eval fault_study`` takes the same arguments):
+2 cores and 10 more for the rogue cases; ``ros2 run swarm_eval fault_study`` takes the
+same arguments):
   scripts/env.sh python scripts/fault_study.py --out results/faults
   scripts/env.sh python scripts/fault_study.py --out /tmp/faults --quick
 """
