@@ -48,12 +48,13 @@ def test_launch_ros_gets_respawn_with_delay_and_bound():
 def _children(tmp_path, monkeypatch) -> Children:
     (tmp_path / 'src' / 'fakepkg').mkdir(parents=True)
     (tmp_path / 'src' / 'fakepkg' / '__init__.py').write_text('')
-    # Exits at once with code 3 (a crash on every start), or sleeps when asked to.
+    # Exits at once with code 3 (a crash on every start), 2 (refused its parameters)
+    # when asked to, or sleeps when asked to.
     (tmp_path / 'src' / 'fakepkg' / 'target.py').write_text(
         'import sys, time\n'
         "if 'sleep:=true' in sys.argv:\n"
         '    time.sleep(60.0)\n'
-        'raise SystemExit(3)\n')
+        "raise SystemExit(2 if 'refuse:=true' in sys.argv else 3)\n")
     (tmp_path / 'logs').mkdir()
     monkeypatch.setattr(launcher, 'RESPAWN_DELAY_S', 0.0)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path / 'src'), *sys.path]))
@@ -94,3 +95,13 @@ def test_no_restart_without_respawn_or_after_a_kill(tmp_path, monkeypatch, capsy
     assert children.procs['agent_2'].wait(timeout=30) < 0
     assert children.crashed() is None and 'agent_2' not in children.respawns
     assert capsys.readouterr().err == ''
+
+
+def test_a_node_that_refused_its_configuration_is_not_restarted(tmp_path, monkeypatch,
+                                                                 capsys):
+    """Status 2 is run_node's one-line refusal of bad parameters: it would refuse again."""
+    children = _children(tmp_path, monkeypatch)
+    children.run(NodeSpec('fakepkg', 'target', 'agent_5', respawn=True,
+                          parameters={'refuse': True}))
+    assert _wait_crash(children) == 'agent_5'
+    assert 'agent_5' not in children.respawns and capsys.readouterr().err == ''

@@ -7,7 +7,8 @@ and memory from /proc, and stops them all (SIGINT, then SIGKILL after a grace pe
 A process whose plan entry has ``respawn`` (the agents, the mission node) and that exits
 on its own is started again ``RESPAWN_DELAY_S`` later, at most ``RESPAWN_RETRIES`` times,
 with one line on stderr each time; its earlier log is kept as ``NAME.runK.log``. Only a
-process out of restarts counts as crashed. Processes the run kills (``kill``: a removed
+process out of restarts, or one that refused its configuration (status 2), counts as
+crashed. Processes the run kills (``kill``: a removed
 robot) and stopped ones are never restarted.
 Every child dies with the launcher however the launcher dies (``die_with_parent``), so
 no orphans are left.
@@ -30,6 +31,10 @@ from swarm_bringup.launch_plan import (
     RESPAWN_RETRIES,
     ros_arguments,
 )
+
+# A node that refused its parameters or files (swarm_common.ros_support.run_node: one
+# line, status 2) would refuse them again: its exit is a crash, not restarted.
+EXIT_BAD_INPUT = 2
 
 
 def stop_groups(procs: Iterable[subprocess.Popen], grace: float) -> None:
@@ -106,7 +111,7 @@ class Children:
             if proc.poll() is None or name in self.expected_exit:
                 continue
             spec = self.specs.get(name)
-            if spec is None or not spec.respawn or \
+            if spec is None or not spec.respawn or proc.returncode == EXIT_BAD_INPUT or \
                     self.respawns.get(name, 0) >= RESPAWN_RETRIES:
                 return name
             died = self._died.setdefault(name, time.monotonic())
