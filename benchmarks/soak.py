@@ -2,17 +2,15 @@
 """Soak: the composed swarm through ROS for an hour, a shape change every 10 minutes.
 
   scripts/env.sh python benchmarks/soak.py --out results/soak      # 1 h, 50 agents
-  scripts/env.sh python benchmarks/soak.py --agents 12 --duration 180 \\
-      --change-every 60 --out /tmp/soak_short                     # a 3-minute try
+  ... --agents 12 --duration 180 --change-every 60 --out /tmp/soak  # a 3-minute try
 
 Runs scripts/launch_swarm.py (composed, real-time factor target 1, radio loss --loss)
 for --duration wall seconds (then SIGINT: the launcher writes OUT/run); once the sim
 clock runs, every --change-every wall seconds the next shape of --shapes through the
-mission node's swarm/set_shape (soak_shapes.py). Every --sample s: PSS, USS and CPU of
-every process of the swarm and the sim clock (swarm_eval.bench.soak) into
-OUT/samples.jsonl, changes into OUT/changes.jsonl, as they happen. At the end: OUT/soak.json,
-OUT/soak.png and the figures printed (memory growth after the warm-up, default the first
-change period; mean CPU; real-time factor; per change, settled (eq. 4.1) and when).
+mission node's swarm/set_shape (soak_shapes.py). Every --sample s: PSS, USS, CPU of
+the swarm's processes and the sim clock (swarm_eval.bench.soak) into OUT/samples.jsonl,
+changes into OUT/changes.jsonl, as they happen. At the end OUT/soak.json, OUT/soak.png
+and the figures: memory growth after --warmup, CPU, RTF, settling (eq. 4.1) per change.
 """
 
 from __future__ import annotations
@@ -133,14 +131,8 @@ def main(argv: list[str] | None = None) -> int:
                 break
             if samples and wall - samples[-1]['wall'] < args.sample:
                 continue
-            pss, uss, cpu, used = {}, {}, {}, 0.0
-            for pid in probe.descendants(proc.pid):
-                size, seconds = probe.memory(pid), probe.cpu_seconds(pid)
-                if size is None or seconds is None:
-                    continue
-                pss[probe.label(pid)], uss[probe.label(pid)] = size
-                cpu[pid] = seconds
-                used += seconds - cpu_before.get(pid, 0.0)
+            pss, uss, cpu = probe.processes(proc.pid)
+            used = sum(c - cpu_before.get(pid, 0.0) for pid, c in cpu.items())
             span = wall - (samples[-1]['wall'] if samples else 0.0)
             now = clock[-1]
             rate = (now[1] - last[1]) / (now[0] - last[0]) if now[0] > last[0] else 0.0

@@ -25,6 +25,9 @@ def test_the_process_tree_and_its_memory_and_cpu_come_from_proc():
         pss, uss = probe.memory(os.getpid())
         assert 1e6 < uss <= pss          # this Python holds numpy: MBs, some of them shared
         assert probe.cpu_seconds(os.getpid()) > 0.0
+        pss_by, uss_by, cpu_by = probe.processes(os.getpid())
+        assert probe.label(child.pid) in pss_by and child.pid in cpu_by
+        assert all(uss_by[name] <= pss_by[name] for name in pss_by)
     finally:
         child.kill()
         child.wait()

@@ -85,6 +85,18 @@ def cpu_seconds(pid: int) -> float | None:
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
+def processes(root: int) -> tuple[dict[str, int], dict[str, int], dict[int, float]]:
+    """PSS and USS by ``label`` and CPU seconds by pid of ``root`` and its descendants
+    (those that end while being read are left out)."""
+    pss, uss, cpu = {}, {}, {}
+    for pid in descendants(root):
+        size, seconds = memory(pid), cpu_seconds(pid)
+        if size is not None and seconds is not None:
+            pss[label(pid)], uss[label(pid)] = size
+            cpu[pid] = seconds
+    return pss, uss, cpu
+
+
 def sim_time(line: str) -> float | None:
     """The sim time of a launcher progress line, else None."""
     match = PROGRESS.search(line)
