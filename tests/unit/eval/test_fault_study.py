@@ -287,3 +287,24 @@ def test_frames_rejected_by_kind_reach_the_table(tmp_path):
                                                          'auth_replay': 1.5}
     assert '| rejected frames |' in fault_report.markdown_table(summary).splitlines()[0]
     assert '| bad_tag 15, replay 2 | 2/2 |' in fault_report.markdown_table(summary)
+
+
+def test_a_restart_case_restarts_agents_with_nothing_lost(tmp_path, capsys):
+    """restart_30: 2 of the 6 agents' processes crash and come back one by one in the
+    fault window (their brains rebuilt, bodies where they were). The swarm ends as the
+    clean run does: settled, every agent inside, every goal claimed once; the restarted
+    agents' fresh DSDV numbers (dsdv.boot_sequence) leave no stale route. Through ROS the
+    case is refused in one line (tests/e2e/test_restarts.py restarts processes there)."""
+    assert 'restart_30' in fault_cases.QUICK_CASES
+    assert 'restart_30' not in fault_cases.ROS_CASES
+    out = tmp_path / 'faults'
+    assert fault_study.main(['--out', str(out), '--quick', '--workers', '1',
+                             '--cases', 'restart_30']) == 0
+    (row,) = json.loads((out / 'faults.json').read_text())['trials']
+    assert row['settled'] and row['passed']
+    assert row['fraction_inside'] == 1.0 and row['goals_claimed'] == 1.0
+    assert row['agents_alive'] == 6 and row['duplicate_goal_claims_final'] == 0
+    assert row['routing_loops'] == 0 and not row['count_to_infinity']
+    assert fault_study.main(['--out', str(tmp_path / 'ros'), '--ros',
+                             '--cases', 'restart_30']) == 2
+    assert 'restart_30 run headless only' in capsys.readouterr().err

@@ -24,16 +24,17 @@ from typing import Any
 import numpy as np
 
 from swarm_eval.scenario import build_scenario, ScenarioSpec
-from swarm_sim.headless import HeadlessSwarm, ScenarioError
+from swarm_sim.headless import HeadlessSwarm, restart_event, ScenarioError
 from swarm_sim.medium import apply_setting
 from swarm_sim.rogue import make_rogue, ROGUE_KINDS
 
 LOSSES = (0, 10, 20, 30, 50)
 KILLS = (10, 30)
+RESTARTS = (30,)
 RANGES = (12.0, 8.0, 5.0, 3.0)
 ROGUE_CASES = tuple(f'rogue_{k}' for k in ('none', *ROGUE_KINDS))
-QUICK_CASES = ('loss_0', 'loss_30', 'kill_30', 'beacons_one', 'range_2', 'obstacle',
-               *ROGUE_CASES)
+QUICK_CASES = ('loss_0', 'loss_30', 'kill_30', 'restart_30', 'beacons_one', 'range_2',
+               'obstacle', *ROGUE_CASES)
 ROS_CASES = ('loss_0', 'loss_20', 'loss_50', 'kill_30', 'beacons_half', 'range_2',
              'obstacle', 'rogue_none', 'rogue_adverts', 'rogue_replay')
 
@@ -43,6 +44,8 @@ def fault_cases(ranges: tuple[float, ...] = RANGES) -> list[dict[str, Any]]:
     cases: list[dict[str, Any]] = [{'name': f'loss_{p}', 'kind': 'loss', 'value': p / 100.0}
                                    for p in LOSSES]
     cases += [{'name': f'kill_{p}', 'kind': 'kill', 'value': p / 100.0} for p in KILLS]
+    cases += [{'name': f'restart_{p}', 'kind': 'restart', 'value': p / 100.0}
+              for p in RESTARTS]
     cases.append({'name': 'beacons_one', 'kind': 'beacons', 'value': 1})
     cases.append({'name': 'beacons_half', 'kind': 'beacons', 'value': 0.5})
     cases += [{'name': f'range_{r:g}', 'kind': 'range', 'value': float(r)} for r in ranges]
@@ -60,20 +63,24 @@ def fault_plan(case: dict, config: dict, seed: int, ids: list[int], beacon_ids: 
     ``removals``: [(time, [agent ids])]; ``settings``: [(time, name, value)] with the
     names of ``swarm_sim.medium.RUNTIME_SETTINGS`` (sim_node's run-time parameters);
     ``first``/``last``: time of the first fault and of the end of the last one.
+    ``restarts``: [(time, [agent ids])] whose processes crash and come back (headless
+    only: through ROS tests/e2e/test_restarts.py kills and respawns agent processes).
     A rogue transmits from t = 0 (setting ``rogue``: 1 + its index in ROGUE_KINDS) and
     one non-beacon agent is removed at the fault time.
     """
     kind, value = case['kind'], case['value']
     t_fault = float(config['fault_time'])
     rng = np.random.default_rng([seed, 10_007])
-    plan: dict[str, Any] = {'removals': [], 'settings': [], 'first': t_fault, 'last': t_fault}
+    plan: dict[str, Any] = {'removals': [], 'settings': [], 'restarts': [],
+                            'first': t_fault, 'last': t_fault}
     if kind == 'loss':
         plan.update(settings=[(0.0, 'loss', value)], first=0.0, last=0.0)
-    elif kind == 'kill':
+    elif kind in ('kill', 'restart'):
         count = max(1, int(round(value * len(ids))))
         victims = rng.choice(ids, size=count, replace=False)
         times = np.sort(rng.uniform(t_fault, t_fault + config['fault_window'], size=count))
-        plan.update(removals=[(float(t), [int(a)]) for t, a in zip(times, victims)],
+        plan.update({'removals' if kind == 'kill' else 'restarts':
+                     [(float(t), [int(a)]) for t, a in zip(times, victims)]},
                     first=float(times[0]), last=float(times[-1]))
     elif kind == 'beacons':
         count = int(value) if value >= 1 else int(math.ceil(value * len(beacon_ids)))
@@ -113,7 +120,7 @@ def configure_fault(swarm: HeadlessSwarm, case: dict, config: dict, seed: int
     plan = fault_plan(case, config, seed, list(swarm.ids),
                       [swarm.ids[i] for i in np.flatnonzero(swarm.is_beacon)], sc.half_size)
     sc.removals = plan['removals']
-    events = []
+    events = [(t, restart_event(victims)) for t, victims in plan['restarts']]
     for t, name, value in plan['settings']:
         if name == 'rogue':   # the world hands it the deliveries (swarm_sim.world_model)
             sc.rogues = [make_rogue(ROGUE_KINDS[int(value) - 1], swarm.ids,

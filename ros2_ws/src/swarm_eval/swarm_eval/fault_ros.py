@@ -284,6 +284,12 @@ def run_ros_study(args: argparse.Namespace, argv: list[str] | None) -> int:
     cases = select_cases(fault_cases(config['ranges']), args.cases, set(ROS_CASES))
     if cases is None:
         return 2
+    headless_only = [c['name'] for c in cases if c['kind'] == 'restart']
+    if headless_only:
+        print(f'fault_study.py: {", ".join(headless_only)} run headless only (through ROS, '
+              'tests/e2e/test_restarts.py kills and respawns agent processes); drop --ros',
+              file=sys.stderr)
+        return 2
     out = pathlib.Path(args.out)
     try:
         if config['seeds'] < 1:
