@@ -79,6 +79,7 @@ class Watch:
     def close(self) -> None:
         import rclpy
         self.executor.shutdown()
+        self.thread.join(timeout=5.0)
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
 
