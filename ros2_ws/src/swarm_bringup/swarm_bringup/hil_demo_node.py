@@ -272,14 +272,15 @@ def main(argv: list[str] | None = None) -> int:
     out = pathlib.Path(args.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
     shapes = SHAPES if args.shape == 'all' else (args.shape,)
-    results = []
+    results, start = [], os.getpid()
     for i, name in enumerate(shapes):
         # a domain per shape: a late packet of the previous run can never reach this one
         if args.domain is not None:
             results.append(run_shape(name, out, args, (args.domain + i) % 233))
             continue
-        try:
-            domain, lock = claim_domain(start=os.getpid() + i)
+        try:   # not the previous shape's domain: none of its late packets reach this one
+            domain, lock = claim_domain(start=start)
+            start = domain + 1
         except DomainError as exc:
             print(f'hil_demo.py: {exc}', file=sys.stderr)
             return 2
