@@ -5,6 +5,7 @@ ones from the simulated boot time, reproducibly."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from swarm_agent.dsdv import BOOT_RATE, boot_sequence, seq_newer
@@ -64,3 +65,24 @@ def test_restart_keeps_the_body_and_gives_the_mission_goals():
     assert 't=4.0 s: agent 4 restarted' in record.events
     with pytest.raises(ScenarioError, match='not in the fleet'):
         HeadlessSwarm(build_scenario(SPEC, 0)).restart(1.0, [99])
+
+
+def test_a_restarted_brain_places_its_body_where_it_drove():
+    """The restarted brain's prior is the fleet position with the distance the body can
+    have driven since (``max_speed * t``) as deviation, so its first trilateration
+    places it: its estimate beats the deployment position the body has left."""
+    scenario = build_scenario(SPEC, 0)
+    scenario.half_size = 8.0
+    scenario.duration_s = scenario.min_duration_s = 26.0
+    scenario.events = [(15.3, restart_event([4]))]
+    swarm = HeadlessSwarm(scenario)
+    record = swarm.run()
+    i = swarm.index[4]
+    error = np.linalg.norm(record.estimates[:, i] - record.positions[:, i], axis=1)
+    moved = np.linalg.norm(record.positions[:, i] - [swarm.fleet[i].x, swarm.fleet[i].y],
+                           axis=1)
+    at = int(np.searchsorted(record.times, 15.3))
+    assert moved[at] > 4.0                      # the deployment prior is that far off
+    after = record.times >= 15.3 + scenario.localization_period_s
+    assert error[after].max() < moved[at] / 2
+    assert error[after].mean() < moved[at] / 3

@@ -35,6 +35,7 @@ import numpy as np
 from swarm_agent.agent_factory import make_brain, swarm_keyring
 from swarm_agent.brain import AgentBrain
 from swarm_agent.frame_auth import FrameAuth, FrameAuthError
+from swarm_agent.localization import LocalizationConfig
 from swarm_agent.mission_radio import MeshListener
 from swarm_common.fleet import place_fleet, PLACEMENT_STD_M, random_fleet, RobotSpec
 from swarm_common.robot_types import load_robot_types
@@ -218,15 +219,19 @@ class HeadlessSwarm:
                 self.mission.events.append(f't={t:.1f} s: agent {agent} removed')
 
     # ------------------------------------------------------------------ restarts
-    def _new_brain(self, r: RobotSpec, boot_time_s: float) -> AgentBrain:
+    def _new_brain(self, r: RobotSpec, boot_time_s: float, t: float = 0.0) -> AgentBrain:
         """Robot ``r``'s brain as its agent node builds it, booted at ``boot_time_s`` of
-        simulated time (the clock of ``dsdv.boot_sequence`` here: runs stay reproducible)."""
+        simulated time (the clock of ``dsdv.boot_sequence`` here: runs stay reproducible),
+        at run time ``t``. Its prior is the fleet position with the placement error; at
+        ``t`` > 0 the body may have driven ``max_speed * t`` from there, which the prior's
+        deviation then says, so the first trilateration places it (thesis 3.1.1)."""
         sc = self.scenario
+        std = max(sc.placement_std_m, LocalizationConfig().max_speed * t)
         return make_brain(agent_id=r.id, agent_type=r.type, is_beacon=r.is_beacon,
                           method=sc.method, initial_position=(r.x, r.y),
                           seed=sc.seed * 100_003 + r.id,
                           localization_period_s=sc.localization_period_s,
-                          initial_position_std=sc.placement_std_m,
+                          initial_position_std=std,
                           keyring=self._keyring, auth=sc.auth, boot_time_s=boot_time_s)
 
     def restart(self, t: float, agent_ids: Sequence[int],
@@ -246,7 +251,7 @@ class HeadlessSwarm:
                 continue
             _add_counts(self.rejected, self.brains[i].auth_stats)
             brain = self.brains[i] = self._new_brain(
-                self.fleet[i], t if boot_time_s is None else boot_time_s)
+                self.fleet[i], t if boot_time_s is None else boot_time_s, t)
             if self.mission.shape is not None:
                 brain.set_shape(self.mission.shape, self.mission.shape_version)
                 brain.set_goals(self.mission.goals, self.mission.goal_version)
