@@ -92,14 +92,16 @@ class FixProbe:
                                                         home_position_std=0.0)
 
     def __call__(self, t: float, beacons: Sequence[tuple[np.ndarray, float, float]],
-                 displacement=(0.0, 0.0)) -> Mode:
+                 displacement=(0.0, 0.0), secondary=()) -> Mode:
+        """A tick; ``secondary`` anchors reach the localizer's own trilateration (``toa``)
+        and not the thesis's fix model (3.1.4 fixes from beacons alone)."""
         loc = self.localizer
         truth = np.asarray(self.truth(), dtype=float)
         if self.first_fix is not None:
             self.pre_tick_errors.append(float(np.hypot(*(loc.position - truth))))
         if self.fix_model is None:
             before = loc.stats['localizations']
-            mode = self._localize(t, beacons, displacement)
+            mode = self._localize(t, beacons, displacement, secondary=secondary)
             fixed = loc.stats['localizations'] > before
         else:
             usable = sum(1 for p, r, s in beacons if np.all(np.isfinite(p))
