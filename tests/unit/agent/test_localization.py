@@ -588,3 +588,25 @@ def test_range_update_is_the_maximum_a_posteriori_estimate():
     np.testing.assert_allclose(kf.x, best, atol=1e-6)
     assert np.linalg.norm(kf.x[:2] - truth) < np.linalg.norm(x0[:2] - truth)
     assert np.all(np.linalg.eigvalsh(kf.P) > 0)
+
+
+def test_a_widened_prior_lets_the_first_fix_place_a_restarted_robot():
+    """A process restarted mid-run starts from the deployment prior while its robot has
+    driven 6 m: with the 0.3 m prior the fix 6 m away is gated (the filter keeps its
+    wrong estimate); widened to the distance it can have driven, the first fix places
+    it."""
+    truth = np.array([6.0, 0.0])
+
+    def first_error(widen: float | None) -> float:
+        loc = Localizer(LocalizationConfig(initial_position_std=0.3), (0.0, 0.0))
+        if widen is not None:
+            loc.widen(widen)
+            assert loc.worst_std == pytest.approx(widen)
+        loc.localize(3.0, _beacons(truth, 5))
+        return float(np.hypot(*(loc.position - truth)))
+
+    assert first_error(None) > 5.0
+    assert first_error(20.0) < 0.3
+    loc = Localizer(LocalizationConfig(initial_position_std=0.3), (0.0, 0.0))
+    loc.widen(0.1)                        # narrower than the prior: nothing changes
+    assert loc.worst_std == pytest.approx(0.3)

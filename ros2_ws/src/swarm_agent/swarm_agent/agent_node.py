@@ -63,6 +63,7 @@ from geometry_msgs.msg import (
 from nav_msgs.msg import Odometry
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.clock import ClockType
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -166,6 +167,8 @@ def set_brain_parameters(brains, params) -> SetParametersResult:
     return SetParametersResult(successful=True)
 
 
+# A first control step later than this in sim time is a (re)start mid-run (s).
+LATE_START_S = 2.0
 RATES_HZ = ('control_rate_hz', 'keepalive_hz', 'radio_tx_hz', 'state_rate_hz',
             'routes_rate_hz')
 
@@ -264,6 +267,7 @@ class AgentNode(Node):
         # The body frame's heading (module docstring): map-aligned until a camera pose.
         self.heading: Heading = MAP_ALIGNED
         self._radio_lag_max = 0.0  # s: worst delay from the medium to this callback
+        self._stepped = False      # the control loop has run once (_late_start)
         self._last_force: tuple[float, float] | None = None
         self._last_force_t = -1e9
         self._keepalive_s = 1.0 / p['keepalive_hz']
@@ -432,11 +436,27 @@ class AgentNode(Node):
         if not self.params['partition_locally']:
             self.brain.set_goals(goals_from_msg(msg), msg.version)
 
+    def _late_start(self, t: float) -> None:
+        """First step at sim time ``t``: an agent (re)started mid-run (a respawn) widens
+        its deployment prior to the distance the robot can have driven since t = 0."""
+        clock = self.get_clock()
+        if not (clock.clock_type == ClockType.ROS_TIME and clock.ros_time_is_active):
+            return    # wall time (hardware): no run time to go by
+        loc = self.brain.localizer
+        std = loc.config.max_speed * t
+        if t > LATE_START_S and std > loc.worst_std:
+            loc.widen(std)
+            self.get_logger().info(f'started at sim time {t:.1f} s: position prior widened '
+                                   f'to {std:.1f} m (the robot may have driven since)')
+
     # -- outputs
     def on_control(self) -> None:
         """One inner-loop step: brain, radio frames, cmd_force and cmd_vel."""
         now = self.get_clock().now()
         t = now.nanoseconds * 1e-9
+        if not self._stepped:
+            self._stepped = True
+            self._late_start(t)
         out = self.brain.step(t)
         if out.packets:
             self._tx_sink([(t, packet) for packet in out.packets])

@@ -260,6 +260,21 @@ class Localizer:
                        velocity_std)
         self.mode = Mode.LOST
 
+    def widen(self, position_std: float) -> None:
+        """The robot may be up to about ``position_std`` (m) from the estimate: an agent
+        process restarted mid-run starts from the deployment prior while its body may have
+        driven since. The prior's position deviation becomes at least that (its
+        correlations dropped), so the first trilateration places the robot (3.1.1)
+        instead of being gated as far from a confident prior."""
+        if not position_std ** 2 > np.linalg.eigvalsh(self.kf.P[:2, :2])[-1]:
+            return
+        p = self.kf.P.copy()
+        p[:2, :] = 0.0
+        p[:, :2] = 0.0
+        p[0, 0] = p[1, 1] = position_std ** 2
+        self.kf.P = p
+        self.beacon_only = False
+
     def stand_still(self) -> None:
         """Zero-velocity update: the robot is parked (no force, held by dry friction).
 
