@@ -13,9 +13,9 @@ The processes are the ones ``scripts/launch_swarm.py`` starts, from the same pla
 simulator, the mission node and the agents (composed or one process per robot). A fleet
 is generated from agents, beacons, types and seed when no fleet_file is given. The
 launch shuts down when the simulator exits; an agent process or the mission node that
-exits on its own is respawned (1 s later, at most 3 times: launch_plan.RESPAWN_*). ``ros2 launch swarm_bringup swarm.launch.py
---show-args`` lists the arguments. (Metrics and figures of a run come with
-scripts/launch_swarm.py, whose monitor records it.)
+exits on its own is respawned (1 s later, at most 3 times: launch_plan.RESPAWN_*).
+``ros2 launch swarm_bringup swarm.launch.py --show-args`` lists the arguments. (Metrics
+and figures of a run come with scripts/launch_swarm.py, whose monitor records it.)
 """
 
 from launch import LaunchDescription
