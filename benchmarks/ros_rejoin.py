@@ -22,17 +22,9 @@ import sys
 import threading
 import time
 
+from swarm_eval.bench.soak import writer_of
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-
-
-def _holder(log: pathlib.Path) -> int | None:
-    for fd_dir in pathlib.Path('/proc').glob('[0-9]*/fd'):
-        try:
-            if any(os.readlink(fd) == str(log) for fd in fd_dir.iterdir()):
-                return int(fd_dir.parent.name)
-        except OSError:
-            continue
-    return None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -110,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
         for k in range(args.kills):
             agent = k % args.agents
             old = max(seq for _, seq in routes_to(agent).values())
-            pid = _holder(out / 'logs' / f'agent_{agent}.log')
+            pid = writer_of(out / 'logs' / f'agent_{agent}.log')
             if pid is None:
                 print(f'ros_rejoin: error: agent_{agent} is not running', file=sys.stderr)
                 return 1

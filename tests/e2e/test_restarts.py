@@ -18,6 +18,7 @@ import time
 import pytest
 
 from swarm_agent.dsdv import BOOT_RATE, SEQUENCE_MASK
+from swarm_eval.bench.soak import writer_of
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 LAUNCH = ROOT / 'scripts' / 'launch_swarm.py'
@@ -114,13 +115,9 @@ def _until(condition, timeout: float, proc: subprocess.Popen | None = None) -> b
 
 def _holder(log: pathlib.Path) -> int:
     """The process writing ``log``: the node (exec'd or forked) of that process name."""
-    for fd_dir in pathlib.Path('/proc').glob('[0-9]*/fd'):
-        try:
-            if any(os.readlink(fd) == str(log) for fd in fd_dir.iterdir()):
-                return int(fd_dir.parent.name)
-        except OSError:
-            continue
-    raise AssertionError(f'no process writes {log}')
+    pid = writer_of(log)
+    assert pid is not None, f'no process writes {log}'
+    return pid
 
 
 def _stderr(out: pathlib.Path) -> str:

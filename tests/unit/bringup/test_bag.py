@@ -10,8 +10,8 @@ from __future__ import annotations
 import logging
 import pathlib
 
+from bag_fixtures import cdr, FakeClock
 from mcap.reader import make_reader
-from mcap_ros2._dynamic import serialize_dynamic
 from mcap_ros2.decoder import DecoderFactory
 import pytest
 
@@ -30,22 +30,6 @@ try:
     message_definition('swarm_msgs/msg/AgentState')
 except BagError:
     pytest.skip('swarm_msgs is not installed (make bootstrap)', allow_module_level=True)
-
-
-class FakeClock:
-    """Wall seconds set by the test."""
-
-    def __init__(self) -> None:
-        self.now = 0.0
-
-    def __call__(self) -> float:
-        return self.now
-
-
-def cdr(type_name: str, message: dict) -> bytes:
-    """``message`` serialized as CDR by mcap-ros2-support from the definition the bag
-    stores (the bytes a publisher of the type sends)."""
-    return serialize_dynamic(type_name, message_definition(type_name))[type_name](message)
 
 
 HEADER = {'stamp': {'sec': 12, 'nanosec': 500_000_000}, 'frame_id': 'map'}

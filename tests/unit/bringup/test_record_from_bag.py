@@ -6,7 +6,7 @@ from __future__ import annotations
 import logging
 import pathlib
 
-from mcap_ros2._dynamic import serialize_dynamic
+from bag_fixtures import cdr, FakeClock
 import numpy as np
 import pytest
 
@@ -20,18 +20,6 @@ except BagError:
     pytest.skip('swarm_msgs is not installed (make bootstrap)', allow_module_level=True)
 
 TRUTH, STATE = 'swarm_msgs/msg/SwarmTruth', 'swarm_msgs/msg/AgentState'
-
-
-class FakeClock:
-    def __init__(self) -> None:
-        self.now = 0.0
-
-    def __call__(self) -> float:
-        return self.now
-
-
-def cdr(type_name: str, message: dict) -> bytes:
-    return serialize_dynamic(type_name, message_definition(type_name))[type_name](message)
 
 
 def header(t: float) -> dict:

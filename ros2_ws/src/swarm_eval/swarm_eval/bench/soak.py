@@ -43,6 +43,18 @@ def descendants(root: int) -> list[int]:
     return sorted(found)
 
 
+def writer_of(path: pathlib.Path) -> int | None:
+    """The process holding ``path`` open (a node's log: the node itself, exec'd or
+    forked), from /proc; None when no process does."""
+    for fd_dir in pathlib.Path('/proc').glob('[0-9]*/fd'):
+        try:
+            if any(os.readlink(fd) == str(path) for fd in fd_dir.iterdir()):
+                return int(fd_dir.parent.name)
+        except OSError:
+            continue
+    return None
+
+
 def label(pid: int) -> str:
     """A short name of a process: the module it runs (``-m module``), its script or its
     program, and its pid."""
