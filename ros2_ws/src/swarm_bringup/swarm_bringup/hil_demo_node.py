@@ -37,6 +37,7 @@ domain on localhost and are all stopped at the end (swarm_bringup.launcher.Child
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import pathlib
@@ -274,16 +275,18 @@ def main(argv: list[str] | None = None) -> int:
     shapes = SHAPES if args.shape == 'all' else (args.shape,)
     results, start = [], os.getpid()
     for i, name in enumerate(shapes):
-        # a domain per shape: a late packet of the previous run can never reach this one
+        # A domain per shape, never the previous shape's: none of its late packets reach
+        # this one. Given --domain: that one and the next ones.
+        lock = contextlib.nullcontext()
         if args.domain is not None:
-            results.append(run_shape(name, out, args, (args.domain + i) % 233))
-            continue
-        try:   # not the previous shape's domain: none of its late packets reach this one
-            domain, lock = claim_domain(start=start)
+            domain = (args.domain + i) % 233
+        else:
+            try:
+                domain, lock = claim_domain(start=start)
+            except DomainError as exc:
+                print(f'hil_demo.py: {exc}', file=sys.stderr)
+                return 2
             start = domain + 1
-        except DomainError as exc:
-            print(f'hil_demo.py: {exc}', file=sys.stderr)
-            return 2
         with lock:
             results.append(run_shape(name, out, args, domain))
         (out / 'hil.json').write_text(json.dumps(
