@@ -11,7 +11,7 @@ from shapely.geometry import Point as ShapelyPoint
 
 from swarm_common.goals import goal_positions, goal_radii, placement_violations
 from swarm_common.robot_types import default_type_counts, load_robot_types
-from swarm_common.shapes import load_shape, Shape, ShapeError
+from swarm_common.shapes import load_shape, Shape, shape_from_rings, ShapeError
 from swarm_mission.bubble_packing import auto_spacing, BubbleConfig, interbubble_force
 from swarm_mission.fractals import schedule_offset, zeta_areas
 from swarm_mission.mission import MissionConfig
@@ -126,6 +126,23 @@ def test_incremental_remesh_of_a_changed_shape_and_a_lost_agent():
     result = partition(new_shape, survivors, RADII, 'bubble', seed=0, previous=first.goals)
     assert_feasible(result, new_shape, survivors)
     assert {g.id for g in result.goals} < {g.id for g in first.goals}
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_incremental_remesh_onto_a_shape_the_old_goals_barely_overlap(seed):
+    """Goals of a circle about the origin, projected into a room with a hole that meets
+    the circle only near its corner, crowd onto a few points; the re-mesh must still give
+    a valid partition (it refused the room in 15 of 20 seeds, telling the user to
+    enlarge a shape twelve times larger than the circles)."""
+    counts, radii = {1: 2, 2: 2, 3: 1}, {1: 1.0, 2: 1.2, 3: 1.5}
+    first = partition(load_shape('circle_314'), counts, radii, 'bubble', seed=seed,
+                      margin=0.6)
+    room = shape_from_rings([[0, 0], [20, 0], [20, 15], [0, 15]],
+                            [[[8, 5], [12, 5], [12, 9]]], name='room')
+    result = partition(room, counts, radii, 'bubble', seed=seed, previous=first.goals,
+                       margin=0.6)
+    assert_feasible(result, room, counts, radii)
+    assert {g.id for g in result.goals} == {g.id for g in first.goals}
 
 
 def test_fractal_stops_cleanly_when_the_free_space_is_full():

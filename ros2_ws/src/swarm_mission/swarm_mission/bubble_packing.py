@@ -57,7 +57,9 @@ Otherwise the boundary row sits half a spacing inside and the hexagonal cells ti
 shape, l = sqrt(2 A / (sqrt(3) n)) (``auto_spacing``). ``'thesis'`` uses l0.
 
 Incremental mode (``relax`` from previous positions, thesis 4.3.4): the previous goals
-are projected into the changed shape and re-meshed from there.
+are projected into the changed shape and re-meshed from there; when that leaves circles
+overlapping or outside (previous goals that crowd onto a few points of a shape they
+barely overlap), the bubbles are placed afresh by Algorithm 1.
 """
 
 from __future__ import annotations
@@ -391,6 +393,12 @@ def bubble_pack(region: Polygon, radii: np.ndarray, rng: np.random.Generator,
     x, iterations, converged = relax(region, x0, radii, spacing, config, layer=layer)
     x = separate(region, x, radii)
     outside, pairs = placement_violations(x, radii, region, tol=1e-7)
+    if (len(outside) or len(pairs)) and previous is not None and keep.any():
+        # Previous goals projected into a shape they barely overlap crowd onto a few
+        # boundary points, which relaxation may not pull apart: the bubbles start afresh.
+        LOG.info('incremental re-mesh left %d circles outside and %d overlapping pairs: '
+                 'bubbles placed afresh', len(outside), len(pairs))
+        return bubble_pack(region, radii, rng, config)
     if len(outside) or len(pairs):
         raise PartitionError(
             f'bubble packing left {len(outside)} circles outside and {len(pairs)} overlapping '
