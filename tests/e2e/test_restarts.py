@@ -183,14 +183,20 @@ def test_a_killed_mission_node_is_respawned_and_the_assignment_converges(process
                     and {s.goal_version for s in states.values()} == {version})
         assert _until(lambda: agreed(0.0), 60.0, proc), watch.states
         rounds = {a: s.assignment_round for a, s in watch.states.items()}
+        with watch.lock:
+            version = watch.goals[-1][1].version
         os.kill(_holder(out / 'logs' / 'mission.log'), signal.SIGKILL)
         killed = time.monotonic()
         assert _until(lambda: 'mission exited with code -9; started again (1/3)'
                       in _stderr(out), 20.0, proc), _stderr(out)
-        # The new mission node publishes the goals again (transient local) and the agents
-        # agree on an assignment of later consensus rounds.
+        # The new mission node resumes its state file: it publishes the same goals under
+        # the same version (transient local), and the agents agree on an assignment of
+        # later consensus rounds.
         assert _until(lambda: agreed(killed) and all(
             watch.states[a].assignment_round > rounds[a] for a in rounds), 40.0, proc)
+        with watch.lock:
+            assert [m.version for t, m in watch.goals if t > killed][-1] == version
+        assert 'resumed shape' in (out / 'logs' / 'mission.log').read_text()
     assert _stop(proc, out)['outcome'] == 'interrupted'
 
 

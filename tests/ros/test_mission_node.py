@@ -101,3 +101,52 @@ def test_fleet_beacons_get_beacon_goals_on_the_wire(tmp_path):
     assert len(goals) == 16
     assert sorted(g.type for g in goals if g.beacon) == [1, 1, 2, 3]
     assert [g.beacon for g in goals] == [g.beacon for g in mission.mission.goals]
+
+
+def test_a_restarted_mission_node_publishes_the_shape_set_at_run_time_again(tmp_path):
+    """A shape set through the service, then the node dies and a new one starts with the
+    same state_file and run_id: it publishes that shape and the very goals under the same
+    versions (the agents keep their assignment). A new run_id starts from the parameters."""
+    from swarm_common.conversions import shape_to_msg
+    from swarm_common.shapes import load_shape
+    from swarm_msgs.msg import FormationShape
+    from swarm_msgs.srv import SetShape
+
+    state = tmp_path / 'mission_state.json'
+
+    def run(run_id: str, set_shape: bool) -> tuple[FormationShape, GoalArray]:
+        with ros_context() as (context, executor):
+            mission = MissionNode(context=context, parameter_overrides=_params(
+                state_file=str(state), run_id=run_id))
+            probe = rclpy.create_node('probe', context=context)
+            shapes: list[FormationShape] = []
+            goals: list[GoalArray] = []
+            probe.create_subscription(FormationShape, '/swarm/shape', shapes.append,
+                                      QoSProfile(**qos.LATCHED))
+            probe.create_subscription(GoalArray, '/swarm/goals', goals.append,
+                                      QoSProfile(**qos.LATCHED))
+            executor.add_node(mission)
+            executor.add_node(probe)
+            try:
+                assert spin_until(executor, lambda: bool(goals), timeout=20.0)
+                if set_shape:
+                    client = probe.create_client(SetShape, '/swarm/set_shape')
+                    request = SetShape.Request(shape=shape_to_msg(
+                        load_shape('thesis_shape_1'), 0))
+                    future = client.call_async(request)
+                    assert spin_until(executor, future.done, timeout=20.0)
+                    assert future.result().success, future.result().message
+                    assert spin_until(executor, lambda: goals[-1].version == 2, timeout=20.0)
+            finally:
+                mission.destroy_node()
+                probe.destroy_node()
+        return shapes[-1], goals[-1]
+
+    shape_before, goals_before = run('run-a', set_shape=True)
+    shape_after, goals_after = run('run-a', set_shape=False)
+    assert (shape_after.version, goals_after.version) == (2, 2)
+    assert shape_after.name == shape_before.name
+    assert goals_from_msg(goals_after) == goals_from_msg(goals_before)
+    shape_new_run, goals_new_run = run('run-b', set_shape=False)
+    assert (shape_new_run.version, goals_new_run.version) == (1, 1)
+    assert shape_new_run.name == 'circle_314'

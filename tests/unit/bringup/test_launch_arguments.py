@@ -37,6 +37,13 @@ def test_fleet_generated_from_counts_when_no_file(tmp_path):
     assert agents.parameters['fleet_file'] == str(fleet_file)
     assert agents.parameters['type_counts'] == '1:3,2:3,3:2'
     assert mission.parameters['fleet_file'] == str(fleet_file)
+    # A respawned mission node resumes this run's state; another launch into the same
+    # folder is another run and starts afresh.
+    assert mission.parameters['state_file'] == str(tmp_path / 'mission_state.json')
+    again, _ = plan_from_arguments({**SMALL, 'agents': '8', 'beacons': '3',
+                                    'out': str(tmp_path)})
+    assert len(mission.parameters['run_id']) == 32
+    assert again[1].parameters['run_id'] != mission.parameters['run_id']
 
 
 def test_shipped_fleet_and_params_file_per_robot(tmp_path):

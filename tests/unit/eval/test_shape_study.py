@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from shapely.geometry import box
 
-from swarm_common.shapes import load_shape, shape_from_polygon
+from swarm_common.shapes import load_shape, shape_from_polygon, shape_json
 from swarm_eval import shape_study_cli as shape_study
 from swarm_eval.shape_study import (
     bearing_spread,
@@ -19,7 +19,7 @@ from swarm_eval.shape_study import (
     run_trial,
     StudyTrial,
 )
-from swarm_mission.shape_gen import generate, shape_json
+from swarm_mission.shape_gen import generate
 
 
 def test_a_tiny_study_writes_one_row_per_shape_and_method(tmp_path):

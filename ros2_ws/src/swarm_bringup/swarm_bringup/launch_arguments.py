@@ -19,6 +19,7 @@ from swarm_bringup.launch_plan import (
     BAG_NAME,
     checked_namespace,
     counts_of,
+    mission_state,
     NamespaceError,
     NodeSpec,
     swarm_plan,
@@ -142,5 +143,5 @@ def plan_from_arguments(given: Mapping[str, str]) -> tuple[list[NodeSpec], pathl
                    record_dir=str(out) if record else '', half_size=half_size, markers=viz,
                    bag=str(out / BAG_NAME) if record else '',
                    params_files=(str(pathlib.Path(params_file).resolve()),)
-                   if params_file else (), namespace=namespace)
+                   if params_file else (), namespace=namespace, **mission_state(out))
     return swarm_plan(run, fleet, counts), fleet_file

@@ -36,11 +36,14 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+import pathlib
 from typing import Any
+import uuid
 
 DEFAULT_BEACON_SHARE = 0.15   # beacons per agent when no count is given (at least 3)
 MIN_BEACONS = 3               # trilateration needs three anchors (thesis 3.2)
 BAG_NAME = 'run.mcap'         # the bag of a recorded run, in its output folder
+MISSION_STATE_NAME = 'mission_state.json'   # the mission node's state, in the same folder
 # Absolute names remapped into a run's namespace (module docstring).
 GLOBAL_REMAPPINGS = (('/clock', 'clock'), ('/tf', 'tf'), ('/tf_static', 'tf_static'))
 RESPAWN_DELAY_S = 1.0         # wait before a crashed process is started again
@@ -115,6 +118,17 @@ class SwarmRun:
     bag: str = ''                 # MCAP bag of every topic (recorder_node); '': none
     params_files: tuple[str, ...] = ()
     namespace: str = ''           # every node's namespace (e.g. /swarm_a); '': none
+    # The mission node keeps its state here and a respawned one resumes it
+    # (swarm_mission.mission_state); run_id tells this run's file from another's.
+    mission_state_file: str = ''
+    run_id: str = ''
+
+
+def mission_state(out: str | pathlib.Path) -> dict[str, str]:
+    """The ``SwarmRun`` fields of a run writing into ``out``: the mission's state file
+    there, under an id of its own (a later run in the same folder does not resume it)."""
+    return {'mission_state_file': str(pathlib.Path(out) / MISSION_STATE_NAME),
+            'run_id': uuid.uuid4().hex}
 
 
 def scoped(run: SwarmRun) -> dict[str, Any]:
@@ -191,6 +205,8 @@ def world_nodes(run: SwarmRun) -> list[NodeSpec]:
         mission['morph'] = run.morph
     if run.sequence_file:
         mission['sequence_file'] = run.sequence_file
+    if run.mission_state_file:
+        mission.update(state_file=run.mission_state_file, run_id=run.run_id)
     return recorder_nodes(run) + [
         NodeSpec('swarm_sim', 'sim_node', 'sim', name='sim', parameters=sim,
                  params_files=run.params_files, **scoped(run)),

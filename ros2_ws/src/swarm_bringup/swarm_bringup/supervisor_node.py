@@ -60,7 +60,14 @@ from typing import NoReturn
 
 import numpy as np
 
-from swarm_bringup.launch_plan import agent_nodes, BAG_NAME, scoped, SwarmRun, world_nodes
+from swarm_bringup.launch_plan import (
+    agent_nodes,
+    BAG_NAME,
+    mission_state,
+    scoped,
+    SwarmRun,
+    world_nodes,
+)
 from swarm_bringup.launcher import Children
 from swarm_bringup.scenario import LaunchError, parse_args, validate
 
@@ -83,7 +90,8 @@ def swarm_run(args: argparse.Namespace, fleet_file: pathlib.Path,
         sequence_file=str(pathlib.Path(args.sequence).resolve()) if args.sequence else '',
         truth_subscribers=1,   # the monitor records from t = 0
         namespace=args.namespace,
-        bag=str(out / BAG_NAME) if args.record and not args.agents_only else '')
+        bag=str(out / BAG_NAME) if args.record and not args.agents_only else '',
+        **mission_state(out))
 
 
 def _peers() -> str:

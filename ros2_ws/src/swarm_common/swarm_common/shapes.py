@@ -181,6 +181,26 @@ def shape_from_polygon(polygon: Polygon, obstacles: Sequence[Polygon] = (),
 
 # ---------------------------------------------------------------- JSON
 
+def shape_json(shape: Shape) -> dict:
+    """The ``*.json`` layout of ``shape`` (outer, holes, obstacles in metres); read back by
+    ``shape_from_json`` into the same rings."""
+    def ring(coords) -> list[list[float]]:
+        return [[float(x), float(y)] for x, y in list(coords)[:-1]]
+
+    return {'outer': ring(shape.region.exterior.coords),
+            'holes': [ring(h.coords) for h in shape.region.interiors],
+            'obstacles': [ring(o.exterior.coords) for o in shape.obstacles]}
+
+
+def shape_from_json(data, name: str, where: str) -> Shape:
+    """The shape of a decoded ``*.json`` layout; ShapeError names ``where`` it came from."""
+    if not isinstance(data, dict) or 'outer' not in data:
+        raise ShapeError(f'{where} needs an object with an "outer" ring: '
+                         '{"outer": [[x, y], ...], "holes": [...], "obstacles": [...]}')
+    return shape_from_rings(data['outer'], data.get('holes') or (),
+                            data.get('obstacles') or (), name=name)
+
+
 def _load_json(path: pathlib.Path) -> Shape:
     try:
         data = json.loads(path.read_text(encoding='utf-8'))
@@ -188,11 +208,7 @@ def _load_json(path: pathlib.Path) -> Shape:
         raise ShapeError(f'cannot read shape file {path}: {exc.strerror}') from None
     except ValueError as exc:
         raise ShapeError(f'shape file {path} is not valid JSON: {exc}') from None
-    if not isinstance(data, dict) or 'outer' not in data:
-        raise ShapeError(f'shape file {path} needs an object with an "outer" ring: '
-                         '{"outer": [[x, y], ...], "holes": [...], "obstacles": [...]}')
-    return shape_from_rings(data['outer'], data.get('holes') or (),
-                            data.get('obstacles') or (), name=path.stem)
+    return shape_from_json(data, path.stem, f'shape file {path}')
 
 
 # ---------------------------------------------------------------- SVG

@@ -37,6 +37,7 @@ import subprocess
 import sys
 
 from swarm_common.robot_types import default_type_counts, RobotTypeError
+from swarm_common.shapes import shape_json
 from swarm_eval.paths import repo_root
 from swarm_eval.shape_study import (
     markdown_table,
@@ -47,7 +48,7 @@ from swarm_eval.shape_study import (
     summary,
     summary_table,
 )
-from swarm_mission.shape_gen import KINDS, shape_json, ShapeGenError, study_shapes
+from swarm_mission.shape_gen import KINDS, ShapeGenError, study_shapes
 from swarm_sim.report import dumps
 
 ROOT = repo_root()

@@ -22,7 +22,7 @@ Pure logic shared by ``mission_node`` and the headless evaluator:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 import json
 import logging
@@ -333,3 +333,17 @@ class Mission:
         if self.config.repair and self.alive:
             self.repartition(reason='self-repair after ' + ' and '.join(reasons))
         return newly_lost
+
+    def resume(self, shape: Shape | None, shape_version: int, goals: Sequence[Goal],
+               goal_version: int, lost: Iterable[int], t: float) -> None:
+        """Take up a restarted mission's saved shape, goals, versions and lost agents at
+        time ``t`` (``swarm_mission.mission_state``), without partitioning again. A lost
+        agent heard after ``t`` rejoins as in ``check_liveness``."""
+        self.shape, self.shape_version = shape, shape_version
+        self.goals, self.goal_version = list(goals), goal_version
+        self.lost = {a for a in lost if a in self.agent_types}
+        self.alive = set(self.agent_types) - self.lost
+        self._lost_at = {a: t for a in self.lost}
+        self.events.append(f't={t:.1f} s: resumed shape '
+                           f'{shape.name if shape else None} v{shape_version}, goals '
+                           f'v{goal_version}, lost {sorted(self.lost)}')

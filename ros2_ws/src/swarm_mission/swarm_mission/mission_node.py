@@ -12,6 +12,10 @@ the topic or the service; ``sequence_file`` switches shapes at given sim times a
 ``morph`` changes the shape smoothly (move, rotate, grow). ``remesh`` chooses whether bubble
 packing moves the goals of a changed shape (incremental) or partitions it anew. With
 ``decentralized`` the node only announces shapes: every agent partitions for itself.
+With ``state_file`` the node keeps its shape, goals, versions, sequence position and lost
+agents in that file at every change; restarted with the same ``run_id`` it publishes them
+again under the same versions instead of starting from its parameters
+(``swarm_mission.mission_state``).
 """
 
 from __future__ import annotations
@@ -28,7 +32,9 @@ from swarm_common.conversions import goals_to_msg, shape_from_msg, shape_to_msg
 from swarm_common.robot_types import load_robot_types, parse_type_counts, RobotTypeError
 from swarm_common.ros_support import run_node
 from swarm_common.shapes import load_shape, ShapeError
+from swarm_mission import mission_state
 from swarm_mission.mission import load_sequence, Mission, MissionConfig, parse_morph
+from swarm_mission.mission_state import MissionStateError
 from swarm_mission.partition import PartitionError
 from swarm_msgs.msg import AgentState, FormationShape, GoalArray
 from swarm_msgs.srv import SetShape
@@ -57,6 +63,10 @@ PARAMETERS = {
                               'move, keeping their ids) or scratch (new goals, re-assigned)'),
     'robot_types_file': ('', "Robot type table YAML (coverage radii; default: the "
                              "package's thesis Table 4.1); the agents' robot_types_file"),
+    'state_file': ('', 'File the node keeps its shape, goals and versions in, and resumes '
+                       'from when restarted (swarm_mission.mission_state); empty: none'),
+    'run_id': ('', 'Id of this run: a state_file saved under another run id is not resumed '
+                   '(the launch plan gives every run its own)'),
 }
 
 
@@ -123,8 +133,51 @@ class MissionNode(Node):
             self.create_subscription(AgentState, f'agent_{agent}/state', self._on_state,
                                      QoSProfile(**qos.STATE))
         self.create_timer(0.5, self._on_timer)
-        if base is not None:
+        self._saved: tuple | None = None
+        if not self._resume() and base is not None:
             self._apply(base)
+
+    def _resume(self) -> bool:
+        """Publish the state saved by this run's previous node, if any (module docstring)."""
+        path = self.params['state_file']
+        if not path:
+            return False
+        try:
+            state = mission_state.load(path, self.params['run_id'])
+        except MissionStateError as exc:
+            self.get_logger().error(f'{exc}; starting from the parameters')
+            return False
+        if state is None:
+            return False
+        mission_state.resume(self.mission, state, self._now())
+        self._next_step, self._start = state.next_step, state.sequence_start
+        self._saved = self._save_key()
+        if state.shape is not None:
+            self._shape_pub.publish(shape_to_msg(state.shape, state.shape_version,
+                                                 self.get_clock().now().to_msg()))
+            if not self.params['decentralized']:
+                self._publish_goals()
+        self.get_logger().info(f'{self.mission.events[-1]} (from {path})')
+        return True
+
+    def _save_key(self) -> tuple:
+        m = self.mission
+        return (m.shape_version, m.goal_version, self._next_step, self._start,
+                tuple(sorted(m.lost)))
+
+    def _save(self) -> None:
+        """Keep the state in ``state_file`` when it changed (one error line if it cannot)."""
+        key = self._save_key()
+        if not self.params['state_file'] or key == self._saved:
+            return
+        self._saved = key
+        try:
+            mission_state.save(self.params['state_file'], mission_state.capture(
+                self.mission, self.params['run_id'], self._next_step, self._start))
+        except OSError as exc:
+            self.get_logger().error(f'cannot write the mission state file '
+                                    f'{self.params["state_file"]}: {exc.strerror}; a '
+                                    'restarted mission node will start from its parameters')
 
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -147,6 +200,7 @@ class MissionNode(Node):
             self._publish_goals()
         message = self.mission.events[-1] if self.mission.events else 'shape announced'
         self.get_logger().info(message)
+        self._save()
         return ok, message
 
     def _publish_goals(self) -> None:
@@ -187,6 +241,7 @@ class MissionNode(Node):
         if self.mission.goal_version != goal_version and not self.params['decentralized']:
             self.get_logger().warning(self.mission.events[-1])
             self._publish_goals()
+        self._save()
 
 
 def main(args=None) -> None:

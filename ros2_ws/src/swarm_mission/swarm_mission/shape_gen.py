@@ -293,13 +293,3 @@ def study_shapes(n: int, seed: int, n_agents: int = THESIS_AGENTS) -> list[Shape
     """``n`` shapes cycling through ``KINDS``; shape i uses seed ``seed * 1000 + i // 6``."""
     return [generate(KINDS[i % len(KINDS)], seed * 1000 + i // len(KINDS), n_agents)
             for i in range(n)]
-
-
-def shape_json(shape: Shape) -> dict:
-    """The ``load_shape`` JSON layout of ``shape`` (outer, holes, obstacles in metres)."""
-    def ring(coords) -> list[list[float]]:
-        return [[float(x), float(y)] for x, y in list(coords)[:-1]]
-
-    return {'outer': ring(shape.region.exterior.coords),
-            'holes': [ring(h.coords) for h in shape.region.interiors],
-            'obstacles': [ring(o.exterior.coords) for o in shape.obstacles]}
