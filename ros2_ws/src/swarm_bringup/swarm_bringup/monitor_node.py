@@ -7,6 +7,11 @@ modes, assigned goals and assignment digests. At every truth message it checks t
 settled condition of eq. 4.1 (``settle``, a ``swarm_sim.metrics.SettleTracker``; a new
 shape or goal list is a change). ``scripts/launch_swarm.py`` runs it inside the
 launcher process and turns the record into ``metrics.json`` and figures.
+
+Given a ``RecordLog`` (``swarm_sim.run_record``), the record goes to its file as the run
+goes and the node holds no sample (an hour of 50 agents would be 40 MB in memory), and a
+killed launcher leaves it on disk; without one, it is kept in memory. ``record()``
+returns it as arrays at the end either way.
 """
 
 from __future__ import annotations
@@ -26,13 +31,29 @@ from swarm_common.ros_support import lean_subscription, run_node
 from swarm_common.shapes import ShapeError
 from swarm_msgs.msg import AgentState, FormationShape, GoalArray, SwarmTruth
 from swarm_sim.metrics import inside_mask, SETTLE_HOLD_S, SETTLE_SPEED, settled_now, SettleTracker
+from swarm_sim.run_record import read_record_log, RecordLog
+
+# The record's fields and their types (the header of a streamed record).
+RECORD_DTYPES = {'times': 'float64', 'positions': 'float64', 'velocities': 'float64',
+                 'estimates': 'float64', 'modes': 'int64', 'alive': 'bool',
+                 'goal_ids': 'int64', 'digests': 'int64', 'rounds': 'int64',
+                 'localized': 'bool'}
+
+
+def logged_arrays(log: RecordLog, dtypes: dict[str, str]) -> dict[str, np.ndarray]:
+    """Close ``log`` and read its rows back as arrays of ``dtypes`` (empty arrays when it
+    has no row; the writer's ``wall`` stamps left out)."""
+    log.close()
+    record = read_record_log(log.path).record
+    return {k: record[k] if k in record else np.zeros(0, dtype=t) for k, t in dtypes.items()}
 
 
 class MonitorNode(Node):
     """Collects truth and agent states; see the module docstring."""
 
     def __init__(self, agent_ids: list[int] | None = None,
-                 settle_hold_s: float = SETTLE_HOLD_S, **kwargs) -> None:
+                 settle_hold_s: float = SETTLE_HOLD_S, record_log: RecordLog | None = None,
+                 **kwargs) -> None:
         super().__init__('swarm_monitor', **kwargs)
         self.declare_parameter('agent_ids', list(agent_ids or [0]),
                                ParameterDescriptor(description='Agent ids to watch'))
@@ -49,9 +70,8 @@ class MonitorNode(Node):
         self.shape = None
         self.goals: list = []
         self.goal_version = 0
-        self.record: dict[str, list] = {k: [] for k in (
-            'times', 'positions', 'velocities', 'estimates', 'modes', 'alive', 'goal_ids',
-            'digests', 'rounds', 'localized')}
+        self.record_log = record_log
+        self._rows: dict[str, list] = {k: [] for k in RECORD_DTYPES}   # without a log
         self._last_record = -1e9
         self.rounds_seen: set[int] = set()
         self.settle = SettleTracker(settle_hold_s)
@@ -123,28 +143,32 @@ class MonitorNode(Node):
             if t - self._last_record < self.period - 1e-6:
                 return
             self._last_record = t
-            est = np.array([s.position if s is not None else (np.nan, np.nan)
-                            for s in self.states], dtype=float)
-            r = self.record
-            r['times'].append(t)
-            r['positions'].append(pos)
-            r['velocities'].append(vel)
-            r['alive'].append(alive)
-            r['estimates'].append(est)
-            r['modes'].append(np.array([s.mode if s is not None else -1 for s in self.states]))
-            r['goal_ids'].append(np.array([s.assigned_goal if s is not None else -1
-                                           for s in self.states]))
-            r['digests'].append(np.array([s.assignment_digest if s is not None else 0
-                                          for s in self.states], dtype=np.int64))
-            r['rounds'].append(np.array([s.assignment_round if s is not None else 0
-                                         for s in self.states], dtype=np.int64))
-            r['localized'].append(np.array([bool(s is not None and s.localized)
-                                            for s in self.states]))
+            states = self.states
+            row = {
+                'times': t, 'positions': pos, 'velocities': vel, 'alive': alive,
+                'estimates': np.array([s.position if s is not None else (np.nan, np.nan)
+                                       for s in states], dtype=float),
+                'modes': np.array([s.mode if s is not None else -1 for s in states]),
+                'goal_ids': np.array([s.assigned_goal if s is not None else -1
+                                      for s in states]),
+                'digests': np.array([s.assignment_digest if s is not None else 0
+                                     for s in states], dtype=np.int64),
+                'rounds': np.array([s.assignment_round if s is not None else 0
+                                    for s in states], dtype=np.int64),
+                'localized': np.array([bool(s is not None and s.localized) for s in states])}
+            if self.record_log is not None:
+                self.record_log.add(row)
+            else:
+                for key, value in row.items():
+                    self._rows[key].append(value)
 
-    def snapshot(self) -> dict:
-        """A copy of the record as numpy arrays (thread-safe)."""
+    def record(self) -> dict[str, np.ndarray]:
+        """The record as numpy arrays (thread-safe); a streamed one is closed and read
+        back (the monitor records nothing after)."""
         with self.lock:
-            return {k: np.asarray(v) for k, v in self.record.items()}
+            if self.record_log is not None:
+                return logged_arrays(self.record_log, RECORD_DTYPES)
+            return {k: np.asarray(v) for k, v in self._rows.items()}
 
     def _settled_truth(self) -> int:
         """Robots settled by eq. 4.1 in truth: slower than SETTLE_SPEED inside the shape.

@@ -35,8 +35,10 @@ and velocities, estimated positions, modes, goal ids, assignment digests and rou
 final goals; separation_times/separation_min: the smallest separation ratio of the sim's
 physics steps up to each truth time, from the sim's ``separation.json``; every agent's
 DSDV route table sampled every 2 s of sim time: route_times,
-route_next (next hop, -1: none), route_hops (255: broken or none), route_stamp),
-``logs/*.log`` and the figures
+route_next (next hop, -1: none), route_hops (255: broken or none), route_stamp; the
+monitor's record and the route samples are written as the run goes into
+``monitor.jsonl`` and ``routes.jsonl``, ``swarm_sim.run_record.RecordLog`` files that a
+killed launcher leaves behind), ``logs/*.log`` and the figures
 ``trajectories.png``, ``mesh.png``, ``localization_error.png`` and ``modes.png``.
 
 One swarm over several hosts: run the same command on every host with the same
@@ -56,7 +58,7 @@ import signal
 import sys
 import threading
 import time
-from typing import NoReturn
+from typing import NoReturn, TYPE_CHECKING
 
 import numpy as np
 
@@ -71,8 +73,15 @@ from swarm_bringup.launch_plan import (
 from swarm_bringup.launcher import Children
 from swarm_bringup.scenario import LaunchError, parse_args, validate
 
+if TYPE_CHECKING:
+    from swarm_sim.run_record import RecordLog
+
 PSS_PERIOD_S = 10.0    # wall seconds between samples of the children's memory (PSS)
+MONITOR_LOG = 'monitor.jsonl'   # the monitor's record, written as the run goes
+ROUTES_LOG = 'routes.jsonl'     # the route table samples, likewise
 ROUTE_PERIOD_S = 2.0   # sim seconds between samples of the agents' route tables
+ROUTE_DTYPES = {'route_times': 'float64', 'route_next': 'int32', 'route_hops': 'int32',
+                'route_stamp': 'float64'}
 NO_ROUTE_HOPS = 255    # swarm_msgs/RouteEntry.INFINITE_HOPS
 FAULT_WORDS = {'swarm/kill': 'removed agents', 'swarm/radio_off': 'radio off for',
                'swarm/radio_on': 'radio back on for'}
@@ -137,7 +146,7 @@ def run_agents_only(children: Children, args: argparse.Namespace, run: SwarmRun,
 class RouteRecorder:
     """Keeps each agent's latest DSDV table (``agent_K/routes``) and samples them all."""
 
-    def __init__(self, node, ids: list[int]) -> None:
+    def __init__(self, node, ids: list[int], log: RecordLog) -> None:
         from rclpy.qos import QoSProfile
 
         from swarm_agent.conversions import stamp_seconds
@@ -153,8 +162,7 @@ class RouteRecorder:
         self.next = np.full((n, n), -1, dtype=np.int32)
         self.hops = np.full((n, n), NO_ROUTE_HOPS, dtype=np.int32)
         self.stamp = np.full(n, np.nan)
-        self.samples: dict[str, list] = {'route_times': [], 'route_next': [],
-                                         'route_hops': [], 'route_stamp': []}
+        self.log = log   # the samples go to its file as the run goes
         for a in self.ids:
             lean_subscription(node, RouteTable, f'agent_{a}/routes', self._on_routes,
                               QoSProfile(**qos.STATE))
@@ -175,18 +183,20 @@ class RouteRecorder:
 
     def sample(self, t: float) -> None:
         with self.lock:
-            for key, value in (('route_times', t), ('route_next', self.next.copy()),
-                               ('route_hops', self.hops.copy()),
-                               ('route_stamp', self.stamp.copy())):
-                self.samples[key].append(value)
+            self.log.add({'route_times': t, 'route_next': self.next,
+                          'route_hops': self.hops, 'route_stamp': self.stamp})
 
     def arrays(self) -> dict[str, np.ndarray]:
+        """Every sample as arrays (the log is closed and read back)."""
+        from swarm_bringup.monitor_node import logged_arrays
+
         n = len(self.ids)
-        empty = {'route_times': (0,), 'route_next': (0, n, n), 'route_hops': (0, n, n),
-                 'route_stamp': (0, n)}
         with self.lock:
-            return {k: np.asarray(v) if v else np.zeros(empty[k])
-                    for k, v in self.samples.items()}
+            record = logged_arrays(self.log, ROUTE_DTYPES)
+        if not len(record['route_times']):
+            record = {'route_times': np.zeros(0), 'route_next': np.zeros((0, n, n)),
+                      'route_hops': np.zeros((0, n, n)), 'route_stamp': np.zeros((0, n))}
+        return record
 
 
 class Faults:
@@ -363,8 +373,9 @@ def supervise(args: argparse.Namespace, run: SwarmRun, children: Children, shape
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
 
-    from swarm_bringup.monitor_node import MonitorNode
+    from swarm_bringup.monitor_node import MonitorNode, RECORD_DTYPES
     from swarm_bringup.results import RunSummary, write_results
+    from swarm_sim.run_record import RecordLog
 
     ids = [r.id for r in sorted(fleet, key=lambda r: r.id)]
     # rclpy's own SIGINT handler would shut the monitor's context down, and a run whose
@@ -378,9 +389,11 @@ def supervise(args: argparse.Namespace, run: SwarmRun, children: Children, shape
     rclpy.init(args=['launch_swarm', *ros_args],
                signal_handler_options=SignalHandlerOptions.NO)
     monitor = MonitorNode(ids, settle_hold_s=args.settle_hold, parameter_overrides=[
-        rclpy.parameter.Parameter('use_sim_time', value=True)])
+        rclpy.parameter.Parameter('use_sim_time', value=True)],
+        record_log=RecordLog(out / MONITOR_LOG, {'dtypes': RECORD_DTYPES, 'agent_ids': ids}))
     faults = Faults(monitor, args, children)
-    routes = RouteRecorder(monitor, ids)
+    routes = RouteRecorder(monitor, ids, RecordLog(out / ROUTES_LOG, {'dtypes': ROUTE_DTYPES,
+                                                                      'agent_ids': ids}))
     next_route_sample = 0.0
     executor = SingleThreadedExecutor()
     executor.add_node(monitor)
@@ -467,7 +480,7 @@ def supervise(args: argparse.Namespace, run: SwarmRun, children: Children, shape
             summary.truth_readers = []
         children.stop_all()
         executor.shutdown()
-        record = monitor.snapshot()
+        record = monitor.record()
         record['agent_ids'] = np.array(monitor.agent_ids)
         record.update(routes.arrays())
         summary.shapes = list(monitor.shapes)
