@@ -9,13 +9,11 @@ process group, when the test ends.
 
 from __future__ import annotations
 
-import fcntl
 import itertools
 import os
 import pathlib
 import subprocess
 import sys
-import tempfile
 
 from hypothesis import settings
 import pytest
@@ -46,28 +44,21 @@ def pytest_sessionstart(session) -> None:
     clean_stale_segments()
 
 
-DOMAIN_LOCKS = pathlib.Path(tempfile.gettempdir()) / 'swarm-formation-ros-domains'
+TEST_DOMAINS = (1, 100)   # swarm_common.domains.RUN_DOMAINS are the runs' own
 
 
 def _reserve_domain_id():
-    """Reserve a domain id in 1..100 for one test: (id, the open lock file).
+    """Reserve a free domain id in 1..100 for one test: (id, the open lock file).
 
-    Ids differ between tests of this session (a counter from an offset of the pid), and
-    a lock file per id keeps two sessions on the machine (two CI runs at once) from
-    using one at the same time: on localhost their nodes would discover each other.
+    Ids differ between tests of this session (a start from an offset of the pid and a
+    counter); ``swarm_common.domains.claim_domain`` skips ids another session holds (its
+    lock file: two CI runs at once) or some other participant uses (its UDP ports).
     """
-    DOMAIN_LOCKS.mkdir(exist_ok=True)
-    start = os.getpid() * 7 + next(_domain_counter)
-    for k in range(100):
-        domain = 1 + (start + k) % 100
-        lock = open(DOMAIN_LOCKS / f'{domain}.lock', 'w')  # noqa: SIM115 - held by the test
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            lock.close()
-            continue
-        return domain, lock
-    raise RuntimeError(f'all 100 test ROS domains are in use on this machine ({DOMAIN_LOCKS})')
+    from swarm_common.domains import claim_domain  # a pure module: no build needed
+
+    low, high = TEST_DOMAINS
+    start = low + (os.getpid() * 7 + next(_domain_counter)) % (high - low + 1)
+    return claim_domain(start, low=low, high=high)
 
 
 @pytest.fixture(autouse=True)
