@@ -80,3 +80,22 @@ def test_bad_arguments_are_refused_in_one_line(tmp_path, given, message):
         plan_from_arguments({**SMALL, 'out': str(tmp_path), **given})
     assert str(err.value).startswith(message)
     assert '\n' not in str(err.value)
+
+
+@pytest.mark.parametrize('mode', ['composed', 'per_robot'])
+def test_the_swarm_key_file_reaches_every_agent_and_a_bad_one_is_refused(tmp_path, mode):
+    from swarm_agent.frame_auth import new_key_file_text
+
+    keys = tmp_path / 'keys.yaml'
+    keys.write_text(new_key_file_text())
+    plan, _ = plan_from_arguments({**SMALL, 'agents': '4', 'beacons': '3', 'mode': mode,
+                                   'swarm_key_file': str(keys), 'out': str(tmp_path)})
+    agents = [s for s in plan if s.package == 'swarm_agent']
+    assert agents and all(s.parameters['swarm_key_file'] == str(keys) for s in agents)
+    assert all('swarm_key_file' not in s.parameters for s in plan if s not in agents)
+    bad = tmp_path / 'bad_keys.yaml'
+    bad.write_text('keys: {1: tooshort}\n')
+    with pytest.raises(LaunchError) as err:
+        plan_from_arguments({**SMALL, 'swarm_key_file': str(bad), 'out': str(tmp_path)})
+    assert str(err.value).startswith('--swarm-key-file: ') and str(bad) in str(err.value)
+    assert '\n' not in str(err.value)

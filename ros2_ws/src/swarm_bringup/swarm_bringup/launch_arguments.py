@@ -41,6 +41,8 @@ ARGUMENTS: tuple[tuple[str, str, str], ...] = (
     ('method', 'bubble', 'partition method: bubble, fractal or forces'),
     ('mode', 'composed', 'composed (all agents in one process) or per_robot'),
     ('params_file', '', 'parameters file read by every node (e.g. config/params.yaml)'),
+    ('swarm_key_file', '', "the swarm's radio key file, read by every agent (default: the "
+                           'development key)'),
     ('seed', '0', 'seed of the fleet, the partition and the noise'),
     ('rtf', '1.0', 'target real-time factor of the simulator (0: as fast as possible)'),
     ('half_size', '50.0', 'workspace half width in metres (thesis: 50)'),
@@ -121,7 +123,8 @@ def plan_from_arguments(given: Mapping[str, str]) -> tuple[list[NodeSpec], pathl
         if values['beacons']:
             argv += ['--beacons', str(_integer(values, 'beacons', '3'))]
     argv += ['--shape', values['shape'], '--method', values['method'], '--seed', str(seed),
-             '--half-size', str(half_size), '--out', str(out)]
+             '--half-size', str(half_size), '--out', str(out),
+             '--swarm-key-file', values['swarm_key_file']]
     args = parse_args(argv)
     try:
         _, counts, _, generated = validate(args)
@@ -143,5 +146,6 @@ def plan_from_arguments(given: Mapping[str, str]) -> tuple[list[NodeSpec], pathl
                    record_dir=str(out) if record else '', half_size=half_size, markers=viz,
                    bag=str(out / BAG_NAME) if record else '',
                    params_files=(str(pathlib.Path(params_file).resolve()),)
-                   if params_file else (), namespace=namespace, **mission_state(out))
+                   if params_file else (), namespace=namespace,
+                   swarm_key_file=args.swarm_key_file, **mission_state(out))
     return swarm_plan(run, fleet, counts), fleet_file

@@ -122,6 +122,7 @@ class SwarmRun:
     # (swarm_mission.mission_state); run_id tells this run's file from another's.
     mission_state_file: str = ''
     run_id: str = ''
+    swarm_key_file: str = ''      # the agents' radio key file; '': the development key
 
 
 def mission_state(out: str | pathlib.Path) -> dict[str, str]:
@@ -232,6 +233,8 @@ def agent_nodes(run: SwarmRun, fleet: Sequence, counts: Mapping[int, int],
             'sensor_batch': True}   # the world sends one batch per step (world_nodes)
         if len(local) < len(all_ids):
             params['agent_ids'] = sorted(local)
+        if run.swarm_key_file:
+            params['swarm_key_file'] = run.swarm_key_file
         return [NodeSpec('swarm_agent', 'composed_node', 'agents', parameters=params,
                          params_files=run.params_files, respawn=True, **scoped(run))]
     return [NodeSpec('swarm_agent', 'agent_node', f'agent_{r.id}', name=f'agent_{r.id}',
@@ -241,7 +244,9 @@ def agent_nodes(run: SwarmRun, fleet: Sequence, counts: Mapping[int, int],
                          'initial_x': r.x, 'initial_y': r.y, 'method': run.method,
                          'seed': run.seed + r.id, 'control_rate_hz': run.control_rate_hz,
                          'partition_locally': run.decentralized, 'type_counts': type_counts,
-                         'use_sim_time': True})
+                         'use_sim_time': True,
+                         **({'swarm_key_file': run.swarm_key_file}
+                            if run.swarm_key_file else {})})
             for r in fleet if r.id in local]
 
 

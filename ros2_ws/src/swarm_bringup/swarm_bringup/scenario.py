@@ -9,6 +9,7 @@ will form, partitioned as mission_node will) and refuses a bad input with a
 from __future__ import annotations
 
 import argparse
+import pathlib
 
 import numpy as np
 
@@ -81,6 +82,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument('--agents-only', action='store_true',
                    help='start only the --local-agents, for the world running on another '
                         'host (no sim, mission or metrics); runs until Ctrl-C')
+    p.add_argument('--swarm-key-file', default='',
+                   help="the swarm's radio key file, read by every agent (make one with "
+                        "'python -m swarm_agent.frame_auth > keys.yaml'; default: the "
+                        'development key, which every copy of this software holds)')
     p.add_argument('--no-record', dest='record', action='store_false',
                    help='do not record the topics into OUT/run.mcap (recorded by default)')
     p.add_argument('--out', required=True)
@@ -229,6 +234,14 @@ def validate(args: argparse.Namespace):
     if split and args.domain is None:
         raise LaunchError('a swarm split over hosts (--local-agents, --agents-only) needs '
                           'the same --domain on every host; add e.g. --domain 42')
+    if args.swarm_key_file:
+        from swarm_agent.agent_factory import swarm_keyring
+        from swarm_agent.frame_auth import FrameAuthError
+        try:
+            swarm_keyring(args.swarm_key_file)
+        except FrameAuthError as exc:
+            raise LaunchError(f'--swarm-key-file: {exc}') from None
+        args.swarm_key_file = str(pathlib.Path(args.swarm_key_file).resolve())
     if args.agents_only and not args.local_ids:
         raise LaunchError('--agents-only with --local-agents none starts nothing; '
                           'name the agents of this host, e.g. --local-agents 4-7')

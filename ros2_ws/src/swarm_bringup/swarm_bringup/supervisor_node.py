@@ -98,7 +98,7 @@ def swarm_run(args: argparse.Namespace, fleet_file: pathlib.Path,
         morph=args.morph,
         sequence_file=str(pathlib.Path(args.sequence).resolve()) if args.sequence else '',
         truth_subscribers=1,   # the monitor records from t = 0
-        namespace=args.namespace,
+        namespace=args.namespace, swarm_key_file=args.swarm_key_file,
         bag=str(out / BAG_NAME) if args.record and not args.agents_only else '',
         **mission_state(out))
 
