@@ -11,11 +11,19 @@ Documented fallbacks (never a hang):
 - more goals than agents: some goals stay empty;
 - an unreachable goal (inf cost) is assigned only if nothing else is possible, and such
   an agent is then left unassigned rather than sent to an unreachable goal.
+
+Identical inputs are solved once: ``AssignmentCache`` keeps the results of one process
+(the evaluator's or a composed container's brains) keyed by the exact bytes of the rows
+used, so the agents of one type holding the same versioned rows share one Hungarian
+solve per round instead of one each.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections import OrderedDict
+from collections.abc import Callable, Hashable, Mapping
+import threading
+from types import MappingProxyType
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -44,3 +52,44 @@ def assign(rows: Mapping[int, tuple[int, np.ndarray]], goal_types: np.ndarray,
             if finite[i, j] < UNREACHABLE:
                 result[agents[i]] = int(goal_ids[cols[j]])
     return result
+
+
+class AssignmentCache:
+    """Least-recently-used results of ``assign`` by a key that determines its inputs.
+
+    The key must fix the whole problem: ``AgentBrain._assign`` uses the bytes its rows'
+    digest is computed over (every row's agent id and encoding: type, goal version,
+    round and quantised costs) and the goal ids, so equal keys mean equal matrices and,
+    ``assign`` being deterministic, equal answers. Results are read-only mappings shared
+    by every caller. ``solves`` counts the calls that ran the solver.
+    """
+
+    def __init__(self, max_size: int = 256) -> None:
+        if max_size < 1:
+            raise ValueError(f'an assignment cache holds at least 1 result, got {max_size}')
+        self.max_size = max_size
+        self.solves = 0
+        self._results: OrderedDict[Hashable, Mapping[int, int]] = OrderedDict()
+        self._lock = threading.Lock()   # a composed container may step brains on threads
+
+    def get(self, key: Hashable, solve: Callable[[], Mapping[int, int]]) -> Mapping[int, int]:
+        """The result kept under ``key``, or ``solve()``'s, kept."""
+        with self._lock:
+            result = self._results.get(key)
+            if result is not None:
+                self._results.move_to_end(key)
+                return result
+        result = MappingProxyType(dict(solve()))
+        with self._lock:
+            self.solves += 1
+            self._results[key] = result
+            if len(self._results) > self.max_size:
+                self._results.popitem(last=False)
+        return result
+
+    def clear(self) -> None:
+        with self._lock:
+            self._results.clear()
+
+
+SHARED = AssignmentCache()   # the one cache of this process

@@ -46,6 +46,7 @@ import numpy as np
 import shapely
 
 from swarm_agent.assignment import assign
+from swarm_agent.assignment import SHARED as SHARED_ASSIGNMENTS
 from swarm_agent.costs import class_costs, VisibilityGraph
 from swarm_agent.dsdv import DsdvConfig, DsdvRouter
 from swarm_agent.forces import ForceParams, formation_force
@@ -535,12 +536,14 @@ class AgentBrain:
         if not rows or self.config.agent_id not in rows:
             return
         ordered = sorted(rows.items())
-        matrix = {aid: (row.agent_type, row.costs) for aid, row in ordered}
-        goal_ids = np.array([g.id for g in self._my_goals])
-        goal_types = np.array([g.type for g in self._my_goals])
-        result = assign(matrix, goal_types, goal_ids)
-        digest = zlib.crc32(b''.join(
-            aid.to_bytes(2, 'little') + row.encode() for aid, row in ordered))
+        used = b''.join(aid.to_bytes(2, 'little') + row.encode() for aid, row in ordered)
+        goal_ids = tuple(g.id for g in self._my_goals)
+        # The rows' bytes and the goal ids fix the problem: one solve per process for all
+        # the agents holding the same rows (assignment.AssignmentCache).
+        result = SHARED_ASSIGNMENTS.get((used, goal_ids), lambda: assign(
+            {aid: (row.agent_type, row.costs) for aid, row in ordered},
+            np.array([g.type for g in self._my_goals]), np.array(goal_ids)))
+        digest = zlib.crc32(used)
         self.goal_id = int(result.get(self.config.agent_id, -1))
         self.assignment_round = rnd
         self.assignment_digest = digest

@@ -567,12 +567,11 @@ class DsdvRouter:
         out.packets.append(self._packet(hop, Kind.DATA, packet.payload, ttl=packet.ttl - 1))
 
     def _on_flood(self, t: float, packet: Packet, out: RouterOutput) -> None:
-        origin, flood_id = wire.decode_routed_header(packet.payload)
+        origin, flood_id, chunk = wire.decode_routed(packet.payload)
         if not self._remember((origin, flood_id)):
             self._count('duplicates')
             return
-        self._deliver(t, origin, Kind.FLOOD,
-                      bytes(packet.payload[wire.ROUTED_HEADER_SIZE:]), out)
+        self._deliver(t, origin, Kind.FLOOD, chunk, out)
         if packet.ttl <= 1:
             self._count('dropped_ttl')
         elif not self._should_relay(packet.source, origin, flood_id):

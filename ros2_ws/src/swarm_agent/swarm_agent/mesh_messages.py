@@ -18,7 +18,9 @@ the authentication trailer of ``swarm_agent.frame_auth``):
   longer one with 32-bit costs, flagged by the top bit of the goal count. Both decode
   to the same row.
 
-Every decoder raises ``MeshMessageError`` (a ValueError) on malformed bytes.
+Every decoder raises ``MeshMessageError`` (a ValueError) on malformed bytes. Decoding is
+done once per transmission (``wire.last_result``): the receivers of one frame get the same
+frozen message object.
 """
 
 from __future__ import annotations
@@ -29,6 +31,8 @@ import math
 import struct
 
 import numpy as np
+
+from swarm_agent.wire import last_result
 
 MSG_NEIGHBOUR_INFO = 1
 MSG_COST_ROW = 2
@@ -73,13 +77,13 @@ class NeighbourInfo:
     @classmethod
     def decode(cls, data: bytes) -> NeighbourInfo:
         """Unpack; raise MeshMessageError on anything malformed."""
-        return _decode_info(bytes(data))
+        return _decode_info(data if data.__class__ is bytes else bytes(data))
 
 
-@functools.lru_cache(maxsize=4096)
+@last_result
 def _decode_info(data: bytes) -> NeighbourInfo:
-    """NeighbourInfo.decode, cached: every neighbour decodes the same heartbeat (a composed
-    process holds them all) and the result is frozen."""
+    """NeighbourInfo.decode, once per transmission: every neighbour decodes the same
+    heartbeat and gets the same frozen object."""
     if len(data) != _INFO.size:
         raise MeshMessageError(f'neighbour info must be {_INFO.size} bytes, got {len(data)}')
     kind, agent_type, flags, mode, x, y, vx, vy, std = _INFO.unpack(data)
@@ -125,6 +129,12 @@ class CostRow:
     def encode(self) -> bytes:
         """Pack into 14 + 2 * len(costs) bytes, or 14 + 4 * len(costs) when a finite cost
         is 655.35 m or more (the router fragments if needed)."""
+        return self._encoded
+
+    @functools.cached_property
+    def _encoded(self) -> bytes:
+        """The encoding, computed once per row object: the assignment digest
+        (``AgentBrain._assign``) encodes every row held at every round."""
         count = len(self.quantised)
         if count >= _WIDE:
             raise MeshMessageError(f'a cost row holds at most {_WIDE - 1} goals, got {count}')
@@ -141,23 +151,29 @@ class CostRow:
     @classmethod
     def decode(cls, data: bytes) -> CostRow:
         """Unpack; raise MeshMessageError on anything malformed."""
-        if len(data) < _ROW_HEADER.size:
-            raise MeshMessageError(f'cost row truncated to {len(data)} bytes')
-        kind, agent, agent_type, goal_version, round_, count = _ROW_HEADER.unpack_from(data)
-        if kind != MSG_COST_ROW:
-            raise MeshMessageError(f'not a cost row (kind {kind})')
-        wide = bool(count & _WIDE)
-        count &= _WIDE - 1
-        expected = _ROW_HEADER.size + (4 if wide else 2) * count
-        if len(data) != expected:
-            raise MeshMessageError(
-                f'cost row of {count} goals must be {expected} bytes, got {len(data)}')
-        if wide:
-            quantised = struct.unpack_from(f'<{count}I', data, _ROW_HEADER.size)
-        else:
-            quantised = tuple(COST_UNREACHABLE if q == _NARROW_UNREACHABLE else q
-                              for q in struct.unpack_from(f'<{count}H', data, _ROW_HEADER.size))
-        return cls(agent, agent_type, goal_version, round_, tuple(quantised))
+        return _decode_row(data if data.__class__ is bytes else bytes(data))
+
+
+@last_result
+def _decode_row(data: bytes) -> CostRow:
+    """CostRow.decode, once per transmission (the receivers of one flood frame)."""
+    if len(data) < _ROW_HEADER.size:
+        raise MeshMessageError(f'cost row truncated to {len(data)} bytes')
+    kind, agent, agent_type, goal_version, round_, count = _ROW_HEADER.unpack_from(data)
+    if kind != MSG_COST_ROW:
+        raise MeshMessageError(f'not a cost row (kind {kind})')
+    wide = bool(count & _WIDE)
+    count &= _WIDE - 1
+    expected = _ROW_HEADER.size + (4 if wide else 2) * count
+    if len(data) != expected:
+        raise MeshMessageError(
+            f'cost row of {count} goals must be {expected} bytes, got {len(data)}')
+    if wide:
+        quantised = struct.unpack_from(f'<{count}I', data, _ROW_HEADER.size)
+    else:
+        quantised = tuple(COST_UNREACHABLE if q == _NARROW_UNREACHABLE else q
+                          for q in struct.unpack_from(f'<{count}H', data, _ROW_HEADER.size))
+    return CostRow(agent, agent_type, goal_version, round_, tuple(quantised))
 
 
 def message_kind(data: bytes) -> int:

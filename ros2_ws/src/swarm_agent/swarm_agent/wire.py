@@ -15,13 +15,22 @@ authentication trailer (``swarm_agent.frame_auth``, 17 bytes) fills a frame to t
 
 Decoders raise ``WireError`` (a ValueError) naming what is wrong; the router catches
 and counts them, so malformed bytes never reach the agent loop.
+
+Decoded once per transmission: one transmission reaches all its receivers as the same
+frame object, one receiver after another (the headless evaluator, a composed process's
+sensor batch; ``frame_auth`` opens it once), so the decoders of frame bodies keep their
+last result by the identity of their argument (``last_result``): the receivers after the
+first get the very same decoded value, which is immutable (tuples, frozen dataclasses,
+bytes), and they only read it.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 import functools
 import struct
+from typing import TypeVar
 
 from swarm_agent.packet import MAX_BODY
 
@@ -38,8 +47,35 @@ MAX_CHUNK = MAX_BODY - _ROUTED.size - _FRAG.size  # app bytes per fragment
 MAX_WHOLE = MAX_BODY - _ROUTED.size - 1
 
 
+_T = TypeVar('_T')
+
+
 class WireError(ValueError):
     """Bytes that are not a valid frame of the given kind."""
+
+
+def last_result(decode: Callable[[bytes], _T]) -> Callable[[bytes], _T]:
+    """``decode`` with its last result kept by the identity of its argument.
+
+    Only a ``bytes`` argument is kept (immutable: the same object always holds the same
+    bytes), and it is referenced, so its identity cannot be reused by another object; a
+    call that raises keeps nothing. The (argument, result) pair is replaced in one
+    assignment, so a reader on another thread never sees a mismatched pair.
+    """
+    last: tuple[object, object] = (None, None)
+
+    @functools.wraps(decode)
+    def cached(data: bytes) -> _T:
+        nonlocal last
+        kept = last
+        if data is kept[0]:
+            return kept[1]
+        result = decode(data)
+        if data.__class__ is bytes:
+            last = (data, result)
+        return result
+
+    return cached
 
 
 @dataclass(frozen=True)
@@ -57,7 +93,9 @@ def encode_heartbeat(sequence: int, info: bytes) -> bytes:
     return _HB.pack(sequence & 0xFFFFFFFF) + info
 
 
+@last_result
 def decode_heartbeat(data: bytes) -> tuple[int, bytes]:
+    """(sender sequence, application info) of a heartbeat."""
     if len(data) < _HB.size:
         raise WireError(f'heartbeat truncated to {len(data)} bytes')
     return _HB.unpack_from(data)[0], bytes(data[_HB.size:])
@@ -74,10 +112,9 @@ def encode_adverts(sender_sequence: int, adverts: list[Advert]) -> list[bytes]:
     return frames
 
 
-@functools.lru_cache(maxsize=4096)
+@last_result
 def decode_adverts(data: bytes) -> tuple[int, tuple[Advert, ...]]:
-    """(sender sequence, adverts) of a DSDV frame; cached, as every neighbour decodes the
-    same broadcast (a composed process holds them all)."""
+    """(sender sequence, adverts) of a DSDV frame, an immutable tuple of frozen adverts."""
     if len(data) < _ADV_HEAD.size:
         raise WireError(f'advert truncated to {len(data)} bytes')
     seq, count = _ADV_HEAD.unpack_from(data)
@@ -94,7 +131,9 @@ def encode_routed(origin: int, second: int, chunk: bytes) -> bytes:
     return _ROUTED.pack(origin, second & 0xFFFF) + chunk
 
 
+@last_result
 def decode_routed(data: bytes) -> tuple[int, int, bytes]:
+    """(origin, second, chunk) of a DATA or FLOOD frame."""
     origin, second = decode_routed_header(data)
     return origin, second, bytes(data[_ROUTED.size:])
 
@@ -107,6 +146,7 @@ def decode_routed_header(data: bytes) -> tuple[int, int]:
     return _ROUTED.unpack_from(data)
 
 
+@last_result
 def routed_key(data: bytes) -> tuple[int, int] | None:
     """(origin, second) of a routed frame, or None when it is too short to be one."""
     return _ROUTED.unpack_from(data) if len(data) > _ROUTED.size else None
@@ -126,6 +166,7 @@ def split_message(message: bytes, fragment_id: int) -> list[bytes]:
             for i, p in enumerate(pieces)]
 
 
+@last_result
 def parse_chunk(chunk: bytes) -> tuple[bytes | None, tuple[int, int, int] | None]:
     """(whole message, None) or (piece, (fragment id, index, count))."""
     if not chunk:
