@@ -372,6 +372,25 @@ class AgentBrain:
         # never written in place, so the caller may keep them.
         return BrainOutput(packets, self._force, self._command)
 
+    def rest(self, t: float) -> bool:
+        """Take the step at ``t`` if it would do nothing, and say whether it did.
+
+        Nothing is due when the agent is parked with zero force (not yielding, no
+        collision check pending), no timer of its own is due (localization, outer loop,
+        the router's) and no frame waits to be sent: ``step(t)`` would then only advance
+        its clock, which this does. True: the force stays the last one returned (zero)
+        and no packets go out; False: call ``step(t)``. Lets a process holding many
+        brains skip the 50 Hz steps of parked agents (issue 23, event-driven).
+        """
+        if (self._parked_since is None or not self._parked or self._commanded
+                or self._yielding
+                or self._avoid_due or self._outbox or t >= self._next_outer
+                or (not self.config.is_beacon and t >= self._next_localization)
+                or not self.router.idle(t)):
+            return False
+        self._last_t = t
+        return True
+
     def snapshot(self) -> Snapshot:
         """The agent's current belief (for AgentState and metrics)."""
         return Snapshot(

@@ -217,9 +217,13 @@ class DsdvRouter:
         return route.next_hop if route and route.hop_count < INFINITE_HOPS else None
 
     # ------------------------------------------------------------------ timers
+    def idle(self, t: float) -> bool:
+        """Whether ``tick(t)`` has nothing to do (no timer due, nothing changed)."""
+        return t < self._wake and not self._dirty and not self._partial
+
     def tick(self, t: float) -> list[Packet]:
         """Heartbeats, neighbour timeouts, full dumps and triggered updates due at ``t``."""
-        if t < self._wake and not self._dirty and not self._partial:
+        if self.idle(t):
             return []
         out: list[Packet] = []
         if t > self._next_expiry:

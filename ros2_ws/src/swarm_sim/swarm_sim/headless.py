@@ -10,7 +10,9 @@ and DDS, so a 50-agent trial takes seconds.
 One control step (``control_dt``, 50 Hz by default, also the physics step) does, in
 order: the scheduled shape changes, removals and fault events due; every living brain
 steps (inner LQR loop; outer loop at 2 Hz; localization every 3 s) and hands its
-packets to the medium; the world steps and reports, stamped with the control instant:
+packets to the medium, except a parked one with nothing due, which rests
+(``AgentBrain.rest``: the same as its step; the counts are in the metrics,
+``brain_steps``); the world steps and reports, stamped with the control instant:
 the brains get the radio deliveries, IMU, ranges, proximity scans and GPS fixes due.
 At every truth sample (``record_period_s``) the mission hears which agents are alive
 over its radio, the beliefs are recorded beside the truth, and the run ends once the
@@ -197,6 +199,7 @@ class HeadlessSwarm:
             radii={t: r.coverage_radius for t, r in self.types.items()},
             beacons={r.id for r in fleet if r.is_beacon})
         self.shapes: list[tuple[float, Shape]] = []
+        self.brain_steps = {'steps': 0, 'active': 0, 'resting': 0}
 
     # ------------------------------------------------------------------ mission
     def _apply_shape(self, t: float, shape: Shape) -> None:
@@ -277,6 +280,7 @@ class HeadlessSwarm:
             'times', 'positions', 'velocities', 'estimates', 'modes', 'alive', 'goal_ids',
             'digests', 'localized', 'min_separation')}
         forces = np.zeros((self.n, 2))
+        stepped = resting = 0   # brain steps taken, and skipped as nothing was due
         world.refresh_links()   # settings applied before the run (a loss) hold from t = 0
         world.rogues = list(sc.rogues)
         for _ in range(int(round(sc.duration_s / sc.control_dt)) + 1):
@@ -287,6 +291,10 @@ class HeadlessSwarm:
                 if brain is None:
                     forces[i] = 0.0
                     continue
+                if brain.rest(t):   # parked, nothing due: its force stays zero
+                    resting += 1
+                    continue
+                stepped += 1
                 out = brain.step(t)
                 forces[i] = out.force
                 for packet in out.packets:
@@ -309,6 +317,8 @@ class HeadlessSwarm:
                 if (world.settle.held(t) and t >= sc.min_duration_s
                         and not world.pending):
                     break
+        self.brain_steps = {'steps': stepped + resting, 'active': stepped,
+                            'resting': resting}
         return self._finish(rec, wallclock.perf_counter() - wall0)
 
     def _feed(self, readings: Readings) -> None:
@@ -385,6 +395,7 @@ class HeadlessSwarm:
         metrics['medium'] = dict(vars(self.medium.stats))
         metrics['auth'] = self.scenario.auth
         metrics['frames_rejected'] = self.frames_rejected()
+        metrics['brain_steps'] = dict(self.brain_steps)
         if self.mission.last_result is not None:
             metrics['goal_epsilon_t'] = float(self.mission.last_result.epsilon_t)
             metrics['goal_epsilon_g'] = float(self.mission.last_result.epsilon_g)
