@@ -26,7 +26,8 @@ def test_every_node_refuses_a_bad_parameter_in_one_line():
     assert {o.returncode for o in outcomes} == {2}
     # Every node of the project is in the table.
     assert {o.executable for o in outcomes} >= {
-        'agent_node', 'composed_node', 'mission_node', 'sim_node', 'monitor_node',
+        'agent_node', 'composed_node', 'mission_node', 'mission_radio_node', 'sim_node',
+        'monitor_node',
         'live_view_node', 'recorder_node', 'bridge_node', 'camera_tracker_node',
         'hil_world_node', 'launch_swarm.py'}
     text = DOC.read_text(encoding='utf-8')

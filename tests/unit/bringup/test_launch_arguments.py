@@ -29,8 +29,10 @@ def test_fleet_generated_from_counts_when_no_file(tmp_path):
     fleet = load_fleet(fleet_file)
     assert fleet_file == tmp_path / 'fleet.yaml'
     assert len(fleet) == 8 and sum(r.is_beacon for r in fleet) == 3
-    assert [s.process for s in plan] == ['sim', 'mission', 'agents']   # composed default
-    sim, mission, agents = plan
+    assert [s.process for s in plan] == ['sim', 'mission', 'mission_radio',
+                                        'agents']   # composed default
+    sim, mission, radio, agents = plan
+    assert radio.parameters['fleet_file'] == str(fleet_file)
     assert sim.parameters['truth_subscribers'] == 0      # no monitor holds the clock
     assert sim.parameters['real_time_factor'] == 1.0 and sim.parameters['record_dir'] == ''
     assert sim.parameters['marker_rate_hz'] == 0.0
@@ -51,8 +53,8 @@ def test_shipped_fleet_and_params_file_per_robot(tmp_path):
         'fleet_file': str(CONFIG / 'fleet.yaml'), 'params_file': str(CONFIG / 'params.yaml'),
         'mode': 'per_robot', 'record': 'true', 'viz': 'true', 'out': str(tmp_path)})
     assert fleet_file == CONFIG / 'fleet.yaml'
-    assert [s.process for s in plan][:3] == ['recorder', 'sim', 'mission']
-    assert [s.process for s in plan][3:] == [f'agent_{k}' for k in range(8)]
+    assert [s.process for s in plan][:4] == ['recorder', 'sim', 'mission', 'mission_radio']
+    assert [s.process for s in plan][4:] == [f'agent_{k}' for k in range(8)]
     assert all(s.params_files == (str(CONFIG / 'params.yaml'),) for s in plan)
     recorder, sim = plan[:2]
     # record:=true: every topic into out/run.mcap, and the sim waits for the recorder.

@@ -40,12 +40,16 @@ def _run(**kw) -> SwarmRun:
 
 def test_per_robot_plan_names_each_agent_after_its_robot():
     plan = swarm_plan(_run(), FLEET, COUNTS)
-    assert [s.process for s in plan] == ['sim', 'mission', 'agent_0', 'agent_1', 'agent_2',
-                                        'agent_3']
-    sim, mission, *agents = plan
+    assert [s.process for s in plan] == ['sim', 'mission', 'mission_radio', 'agent_0',
+                                        'agent_1', 'agent_2', 'agent_3']
+    sim, mission, radio, *agents = plan
     assert (sim.package, sim.executable, sim.name) == ('swarm_sim', 'sim_node', 'sim')
     assert (mission.package, mission.executable, mission.name) == (
         'swarm_mission', 'mission_node', 'mission')
+    # The mission learns which agents are alive from its radio, a node of the mesh.
+    assert (radio.package, radio.executable, radio.name) == (
+        'swarm_agent', 'mission_radio_node', 'mission_radio')
+    assert mission.parameters.get('liveness', 'radio') == 'radio'
     assert sim.parameters['sensor_batch'] is False   # per-robot sensor topics
     for robot, spec in zip(FLEET, agents):
         assert (spec.package, spec.executable, spec.module) == (
@@ -64,8 +68,8 @@ def test_per_robot_plan_names_each_agent_after_its_robot():
 
 def test_composed_plan_is_one_process_that_keeps_its_node_names():
     plan = swarm_plan(_run(composed=True, control_rate_hz=25.0), FLEET, COUNTS)
-    assert [s.process for s in plan] == ['sim', 'mission', 'agents']
-    sim, _, agents = plan
+    assert [s.process for s in plan] == ['sim', 'mission', 'mission_radio', 'agents']
+    sim, _, _, agents = plan
     # A name would rename every robot's node of the process (/agent_K/agents_container).
     assert agents.name is None and agents.namespace is None and not agents.fork
     assert agents.executable == 'composed_node'
@@ -86,7 +90,7 @@ def test_a_host_runs_only_its_agents():
 
 
 def test_world_parameters_follow_the_run():
-    sim, mission = world_nodes(_run(markers=True, real_time_factor=2, record_dir='/r',
+    sim, mission, _ = world_nodes(_run(markers=True, real_time_factor=2, record_dir='/r',
                                     truth_subscribers=1, morph='move:15@200+60',
                                     sequence_file='/s.yaml', decentralized=True))
     assert sim.parameters == {
@@ -97,7 +101,7 @@ def test_world_parameters_follow_the_run():
         'shape': 'circle_314', 'method': 'bubble', 'fleet_file': '/tmp/run/fleet.yaml',
         'seed': 5, 'remesh': 'incremental', 'decentralized': True, 'use_sim_time': True,
         'morph': 'move:15@200+60', 'sequence_file': '/s.yaml'}
-    _, plain = world_nodes(_run())
+    _, plain, _ = world_nodes(_run())
     assert 'morph' not in plain.parameters and 'sequence_file' not in plain.parameters
 
 
@@ -106,7 +110,8 @@ def test_a_run_with_a_bag_starts_the_recorder_first():
     subscribers it waits for before t = 0 (so the bag holds the run from its start)."""
     plan = swarm_plan(_run(bag='/r/run.mcap', truth_subscribers=1, composed=True,
                            params_files=('/p.yaml',)), FLEET, COUNTS)
-    assert [s.process for s in plan] == ['recorder', 'sim', 'mission', 'agents']
+    assert [s.process for s in plan] == ['recorder', 'sim', 'mission', 'mission_radio',
+                                        'agents']
     recorder, sim = plan[:2]
     assert (recorder.package, recorder.executable, recorder.name) == (
         'swarm_bringup', 'recorder_node', 'recorder')
@@ -143,13 +148,13 @@ def test_command_line_rendering():
 
 
 def test_launch_ros_rendering():
-    spec = swarm_plan(_run(params_files=('/p.yaml',)), FLEET, COUNTS)[2]
+    spec = swarm_plan(_run(params_files=('/p.yaml',)), FLEET, COUNTS)[3]
     kw = node_kwargs(spec)
     assert kw['package'] == 'swarm_agent' and kw['executable'] == 'agent_node'
     assert kw['name'] == 'agent_0' and 'namespace' not in kw
     assert kw['parameters'] == ['/p.yaml', dict(spec.parameters)]
     assert kw['remappings'] == []
-    composed = node_kwargs(swarm_plan(_run(composed=True), FLEET, COUNTS)[2])
+    composed = node_kwargs(swarm_plan(_run(composed=True), FLEET, COUNTS)[3])
     assert 'name' not in composed and 'namespace' not in composed
 
 
@@ -205,7 +210,7 @@ def test_the_launcher_plans_from_its_command_line(tmp_path):
                        '--morph', 'move:1@10+5', '--out', str(tmp_path)])
     _, counts, _, fleet = validate(args)
     run = swarm_run(args, tmp_path / 'fleet.yaml', tmp_path)
-    recorder, sim, mission, agents = swarm_plan(run, fleet, counts)
+    recorder, sim, mission, _, agents = swarm_plan(run, fleet, counts)
     assert recorder.parameters['output'] == str(tmp_path / 'run.mcap')
     assert sim.parameters['truth_subscribers'] == 2
     assert sim.parameters['record_dir'] == str(tmp_path)
@@ -217,7 +222,7 @@ def test_the_launcher_plans_from_its_command_line(tmp_path):
     args = parse_args(['--agents', '8', '--no-record', '--out', str(tmp_path)])
     run = swarm_run(args, tmp_path / 'fleet.yaml', tmp_path)
     assert run.bag == ''
-    assert [s.process for s in world_nodes(run)] == ['sim', 'mission']
+    assert [s.process for s in world_nodes(run)] == ['sim', 'mission', 'mission_radio']
     assert world_nodes(run)[0].parameters['truth_subscribers'] == 1
 
 

@@ -33,7 +33,7 @@ def test_agents_and_mission_respawn_the_world_does_not(composed):
                    bag='/tmp/run.mcap')
     respawned = {spec.process for spec in swarm_plan(run, FLEET, COUNTS) if spec.respawn}
     agents = {'agents'} if composed else {'agent_0', 'agent_1'}
-    assert respawned == {'mission', *agents}   # not 'sim', not 'recorder'
+    assert respawned == {'mission', 'mission_radio', *agents}   # not 'sim', 'recorder'
 
 
 def test_launch_ros_gets_respawn_with_delay_and_bound():

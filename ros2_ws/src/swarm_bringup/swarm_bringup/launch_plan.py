@@ -189,7 +189,8 @@ def recorder_nodes(run: SwarmRun) -> list[NodeSpec]:
 
 
 def world_nodes(run: SwarmRun) -> list[NodeSpec]:
-    """The recorder (when the run has a bag), the simulator and the mission node."""
+    """The recorder (when the run has a bag), the simulator, the mission node and its
+    radio."""
     sim = {'fleet_file': run.fleet_file, 'shape': run.shape,
            'real_time_factor': float(run.real_time_factor), 'record_dir': run.record_dir,
            'gui': run.gui, 'seed': run.seed, 'half_size': run.half_size,
@@ -208,11 +209,19 @@ def world_nodes(run: SwarmRun) -> list[NodeSpec]:
         mission['sequence_file'] = run.sequence_file
     if run.mission_state_file:
         mission.update(state_file=run.mission_state_file, run_id=run.run_id)
+    # The mission computer's radio (sim_node's mission_radio): the mission learns over it
+    # which agents are alive.
+    radio = {'fleet_file': run.fleet_file, 'use_sim_time': True}
+    if run.swarm_key_file:
+        radio['swarm_key_file'] = run.swarm_key_file
     return recorder_nodes(run) + [
         NodeSpec('swarm_sim', 'sim_node', 'sim', name='sim', parameters=sim,
                  params_files=run.params_files, **scoped(run)),
         NodeSpec('swarm_mission', 'mission_node', 'mission', name='mission',
                  parameters=mission, params_files=run.params_files, respawn=True,
+                 **scoped(run)),
+        NodeSpec('swarm_agent', 'mission_radio_node', 'mission_radio', name='mission_radio',
+                 parameters=radio, params_files=run.params_files, respawn=True,
                  **scoped(run))]
 
 

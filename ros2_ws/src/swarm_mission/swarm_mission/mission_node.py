@@ -5,13 +5,22 @@ Topics and services
   ``swarm/goals`` (swarm_msgs/GoalArray, latched)        published: current goals
   ``swarm/shape_in`` (swarm_msgs/FormationShape)         subscribed: set a shape by topic
   ``swarm/set_shape`` (swarm_msgs/srv/SetShape)          service: set a shape, with reply
-  ``agent_K/state`` (swarm_msgs/AgentState)              subscribed: liveness for self-repair
+  ``mission/alive`` (std_msgs/Int32MultiArray)          subscribed: the agents the
+                                                          mission's radio holds routes to
+  ``agent_K/state`` (swarm_msgs/AgentState)              subscribed with liveness:=states
 
 The shape comes from the ``shape`` parameter (built-in name or .json/.svg/.png file),
 the topic or the service; ``sequence_file`` switches shapes at given sim times and
 ``morph`` changes the shape smoothly (move, rotate, grow). ``remesh`` chooses whether bubble
 packing moves the goals of a changed shape (incremental) or partitions it anew. With
 ``decentralized`` the node only announces shapes: every agent partitions for itself.
+
+Self-repair needs to know which agents are alive. As the thesis's mission computer, the
+node learns it over the radio (``liveness`` radio, the default): its radio's node,
+``swarm_agent``'s ``mission_radio_node``, hears the route adverts of the agents around it
+and publishes on ``mission/alive`` the agents it holds a route to. ``liveness`` states
+reads the agents' AgentState topics instead (a ROS graph a real mission computer may not
+see).
 With ``state_file`` the node keeps its shape, goals, versions, sequence position and lost
 agents in that file at every change; restarted with the same ``run_id`` it publishes them
 again under the same versions instead of starting from its parameters
@@ -25,6 +34,7 @@ import sys
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+from std_msgs.msg import Int32MultiArray
 import yaml
 
 from swarm_common import qos
@@ -67,7 +77,11 @@ PARAMETERS = {
                        'from when restarted (swarm_mission.mission_state); empty: none'),
     'run_id': ('', 'Id of this run: a state_file saved under another run id is not resumed '
                    '(the launch plan gives every run its own)'),
+    'liveness': ('radio', 'How the node learns which agents are alive: radio (the route '
+                          'adverts its radio hears, on mission/alive) or states (the '
+                          "agents' AgentState topics)"),
 }
+LIVENESS = ('radio', 'states')
 
 
 def _fleet(path: str) -> tuple[dict[int, int], set[int]]:
@@ -129,9 +143,16 @@ class MissionNode(Node):
         self.create_subscription(FormationShape, 'swarm/shape_in', self._on_shape_in,
                                  QoSProfile(**qos.STATE))
         self.create_service(SetShape, 'swarm/set_shape', self._on_set_shape)
-        for agent in self.mission.agent_types:
-            self.create_subscription(AgentState, f'agent_{agent}/state', self._on_state,
+        if p['liveness'] not in LIVENESS:
+            raise ValueError(f"liveness {p['liveness']!r} is not one of {', '.join(LIVENESS)}; "
+                             'set -p liveness:=radio (or states)')
+        if p['liveness'] == 'radio':
+            self.create_subscription(Int32MultiArray, 'mission/alive', self._on_alive,
                                      QoSProfile(**qos.STATE))
+        else:
+            for agent in self.mission.agent_types:
+                self.create_subscription(AgentState, f'agent_{agent}/state', self._on_state,
+                                         QoSProfile(**qos.STATE))
         self.create_timer(0.5, self._on_timer)
         self._saved: tuple | None = None
         if not self._resume() and base is not None:
@@ -227,6 +248,11 @@ class MissionNode(Node):
 
     def _on_state(self, msg: AgentState) -> None:
         self.mission.agent_seen(int(msg.id), self._now())
+
+    def _on_alive(self, msg: Int32MultiArray) -> None:
+        now = self._now()
+        for agent in msg.data:
+            self.mission.agent_seen(int(agent), now)
 
     def _on_timer(self) -> None:
         now = self._now()

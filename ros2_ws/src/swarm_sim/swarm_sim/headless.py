@@ -45,12 +45,11 @@ from swarm_common.shapes import Shape
 from swarm_mission.mission import Mission, MissionConfig, SequenceStep
 from swarm_sim.medium import MediumConfig, RadioMedium
 from swarm_sim.metrics import SETTLE_HOLD_S, trial_metrics
-from swarm_sim.mission_mesh import MediumWithMission
+from swarm_sim.mission_mesh import MediumWithMission, MISSION_RADIO_STREAM
 from swarm_sim.physics import PointMassBackend
 from swarm_sim.world_model import Readings, World, WorldConfig
 
 METHODS = ('bubble', 'fractal', 'forces')
-MISSION_RADIO_STREAM = 0x4D52   # seeds the mission radio's losses apart from the rest
 
 
 class ScenarioError(ValueError):

@@ -8,6 +8,10 @@ config object, holding the mission and the robots within range of it, with rando
 draws of its own). The robots' medium is left as it was: its links, deliveries, TOA
 ranges and random draws do not change, and the agents never see the mission's radio.
 Faults (range, loss, walls, obstacles, radios off) apply to both.
+
+In the headless evaluator the listener is the mission's ``MeshListener`` itself; sim_node
+gives a ``RelayedListener``, whose frames it publishes on ``mission/radio/rx`` for the
+mission node's own ``MeshListener``: one medium, one listener, in both modes.
 """
 
 from __future__ import annotations
@@ -17,16 +21,34 @@ from collections.abc import Sequence
 import numpy as np
 from shapely.geometry import Polygon
 
-from swarm_agent.mission_radio import ADVERT_KINDS, MeshListener
+from swarm_agent.mission_radio import ADVERT_KINDS, MeshListener, MISSION_RADIO_ID
 from swarm_agent.packet import Packet
 from swarm_sim.medium import RadioMedium, SweepingWall
+
+MISSION_RADIO_STREAM = 0x4D52   # seeds the mission radio's losses apart from the rest
+
+
+class RelayedListener:
+    """The mission's radio in sim_node: keeps what it hears for sim_node to publish."""
+
+    def __init__(self, node_id: int = MISSION_RADIO_ID) -> None:
+        self.id = node_id
+        self.heard: list[tuple[float, Packet]] = []
+
+    def on_packet(self, t: float, packet: Packet) -> None:
+        self.heard.append((t, packet))
+
+    def take(self) -> list[tuple[float, Packet]]:
+        """The frames heard since the last call."""
+        heard, self.heard = self.heard, []
+        return heard
 
 
 class MediumWithMission:
     """The robots' medium plus the mission's radio; see the module docstring.
     Attributes not defined here are the robots' medium's."""
 
-    def __init__(self, medium: RadioMedium, listener: MeshListener,
+    def __init__(self, medium: RadioMedium, listener: MeshListener | RelayedListener,
                  position: Sequence[float], rng: np.random.Generator,
                  obstacles: Sequence[Polygon] = ()) -> None:
         self.medium = medium

@@ -22,7 +22,10 @@ Topics (K: a robot id; per-robot topics have no default QoS event handlers,
              four topics of every robot in one message per step, for composed agents);
              ``swarm/truth`` (swarm_msgs/SwarmTruth, metrics only) and ``/tf`` (the
              truth as ``map -> truth/agent_K/base_link``); ``swarm/markers``
-             (visualization_msgs/MarkerArray, ``marker_rate_hz``, 0 turns it off)
+             (visualization_msgs/MarkerArray, ``marker_rate_hz``, 0 turns it off);
+             ``mission/radio/rx`` (swarm_msgs/RadioPacketArray, the route adverts the
+             mission computer's radio heard, with ``mission_radio``: the mission node
+             learns from them which agents are alive, swarm_sim.mission_mesh)
   subscribed ``agent_K/cmd_force`` (geometry_msgs/WrenchStamped, N, map frame) or, with
              ``sensor_batch``, ``swarm/cmd_batch`` (swarm_msgs/ForceBatch);
              ``radio/tx`` (swarm_msgs/RadioPacketArray, the agents' batches);
@@ -52,7 +55,7 @@ from std_msgs.msg import Float64MultiArray, Int32MultiArray
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
-from swarm_agent.conversions import frames_or_log, stamp_seconds
+from swarm_agent.conversions import frames_or_log, frames_to_msg, stamp_seconds
 from swarm_common import qos
 from swarm_common.conversions import goals_from_msg, shape_from_msg
 from swarm_common.ros_parameters import declare
@@ -69,6 +72,7 @@ from swarm_msgs.msg import (
 from swarm_sim import conversions as conv
 from swarm_sim.markers import swarm_markers
 from swarm_sim.medium import RUNTIME_SETTINGS
+from swarm_sim.mission_mesh import RelayedListener
 from swarm_sim.pacing import Pacer
 from swarm_sim.run_record import RunRecord
 from swarm_sim.sim_parameters import SIM_PARAMETERS, world_from_parameters
@@ -136,6 +140,10 @@ class SimNode(Node):
             self.create_subscription(ForceBatch, 'swarm/cmd_batch', self._on_force_batch,
                                      QoSProfile(**qos.COMMAND_BATCH))
         self._tx_sub = self.create_subscription(RadioPacketArray, 'radio/tx', self._on_tx, radio)
+        listener = getattr(self.world.medium, 'listener', None)
+        self._mission_radio = listener if isinstance(listener, RelayedListener) else None
+        self.mission_rx_pub = (self.create_publisher(RadioPacketArray, 'mission/radio/rx', radio)
+                               if self._mission_radio is not None else None)
         for fault in ('kill', 'radio_off', 'radio_on', 'move_obstacle'):
             self.create_subscription(
                 Float64MultiArray if fault == 'move_obstacle' else Int32MultiArray,
@@ -252,6 +260,8 @@ class SimNode(Node):
             readings.rx = readings.imu = readings.ranges = readings.proximity = None
         for kind, agent, msg in conv.robot_messages(readings, self.ids, imu_std, prox_std):
             self.pubs[kind, agent].publish(msg)
+        if self._mission_radio is not None and (heard := self._mission_radio.take()):
+            self.mission_rx_pub.publish(frames_to_msg(heard, conv.stamp_of(t)))
         if readings.truth is not None:
             self.truth_pub.publish(conv.truth_msg(conv.stamp_of(t), self.fleet, readings.truth))
             self.tf_pub.publish(conv.truth_tf(conv.stamp_of(t), self.fleet, readings.truth))

@@ -24,6 +24,7 @@ from swarm_common.parameters import configured, spec_table, tunable
 from swarm_common.robot_types import load_robot_types, RobotType
 from swarm_common.shapes import load_shape
 from swarm_sim.medium import MediumConfig, RadioMedium
+from swarm_sim.mission_mesh import MediumWithMission, MISSION_RADIO_STREAM, RelayedListener
 from swarm_sim.physics import make_backend
 from swarm_sim.rogue import check_rogue
 from swarm_sim.world_model import World, WorldConfig
@@ -105,6 +106,9 @@ class SimParameters:
     rogue_trailer: bool = tunable(True, "The rogue's frames end with an authentication "
                                         'trailer (a tag it cannot compute): the agents '
                                         'authenticate (their auth parameter)')
+    mission_radio: bool = tunable(True, "The mission computer's radio at the shape's "
+                                        'centroid: the route adverts it hears go out on '
+                                        'mission/radio/rx (swarm_sim.mission_mesh)')
     half_size: float = tunable(50.0, 'Workspace half width (m)', low=0.1, high=1e5)
     terrain: str = tunable('rough', 'pybullet terrain: rough or flat')
     seed: int = tunable(0, 'Seed of the noise generators and the terrain',
@@ -149,7 +153,8 @@ def world_from_parameters(p: dict) -> tuple[list[RobotSpec], dict[int, RobotType
                          '(id, type, beacon, x, y), e.g. -p fleet_file:=fleet.yaml')
     fleet = load_fleet(p['fleet_file'])
     types = load_robot_types()
-    obstacles = list(load_shape(p['shape']).obstacles) if p['shape'] else []
+    shape = load_shape(p['shape']) if p['shape'] else None
+    obstacles = list(shape.obstacles) if shape is not None else []
     # Where the robots really stand: near the fleet file's positions, which are all the
     # agents know (swarm_common.fleet.place_fleet, the same draw as headless).
     fleet = place_fleet(fleet, p['placement_std_m'], p['seed'],
@@ -160,6 +165,11 @@ def world_from_parameters(p: dict) -> tuple[list[RobotSpec], dict[int, RobotType
                            p['terrain'], p['seed'], p['gui'], p['physics_rate_hz'])
     medium = RadioMedium(dataclasses.replace(config.medium, loss=p['loss'],
                                              range_m=p['radio_range_m']), rng, obstacles)
+    if p['mission_radio'] and shape is not None:
+        # Stands where the headless evaluator puts it; its draws have their own stream.
+        medium = MediumWithMission(
+            medium, RelayedListener(), shape.region.centroid.coords[0],
+            np.random.default_rng([MISSION_RADIO_STREAM, p['seed']]), obstacles)
     world = World(fleet, types, backend, world_config(p), rng, obstacles, medium)
     world.rogue_trailer = bool(p['rogue_trailer'])
     world.set_rogue(check_rogue(p['rogue']))
