@@ -303,8 +303,6 @@ class HeadlessSwarm:
             world.shape = self.mission.shape
             readings = world.sense(t)
             self._feed(readings)
-            for packet in readings.rogue or ():
-                self.mission_radio.on_packet(t, packet)
             if readings.truth is not None:
                 self._sample(readings, rec)
                 if sink is not None:

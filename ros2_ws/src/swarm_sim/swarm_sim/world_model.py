@@ -375,7 +375,7 @@ class World:
 
     def _rogue(self, t: float, delivered, living: np.ndarray) -> list[Packet]:
         """The rogues overhear this report's deliveries; their frames go to every living
-        robot with them."""
+        robot with them, and to the mission computer's radio when the medium has one."""
         frames = []
         for rogue in self.rogues:
             for packet, _ in delivered:
@@ -384,6 +384,9 @@ class World:
         if frames:
             receivers = [self.ids[i] for i in living]
             self._rx.extend((t, packet, receivers) for packet in frames)
+            listener = getattr(self.medium, 'listener', None)   # MediumWithMission
+            for packet in frames if listener is not None else ():
+                listener.on_packet(t, packet)
         return frames
 
     def links_by_index(self) -> np.ndarray:
