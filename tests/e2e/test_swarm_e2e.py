@@ -3,8 +3,9 @@
 Asserts what the running-system issue asks: every agent settles inside the shape
 (eq. 4.1, judged on ground truth), the agents agree on the assignment (the same cost-row
 digest per type, no goal claimed twice), and no agent subscribes to ground truth. The
-second run removes two agents mid-formation: the mission declares them lost,
-re-partitions for the survivors, and the survivors fill the shape.
+second run removes two agents mid-formation: the mission declares them lost (its radio
+hears their routes break), re-partitions for the survivors, and the survivors fill the
+shape. The third has a rogue transmitter forging route adverts from the start.
 
 The shape is an 8 x 8 m square: with the thesis's sensors (2 m GPS on 3 beacons) the
 agents' position estimates are good to about a metre, so a smaller shape would test the
@@ -78,6 +79,20 @@ def test_self_repair_after_two_agents_are_removed(processes, tmp_path):
     assert m['fraction_inside'] == 1.0
     assert m['duplicate_goal_claims_final'] == 0
     assert m['goal_versions'] >= 2, 'the mission did not re-partition for the survivors'
+
+
+def test_a_rogue_forging_route_adverts_changes_nothing_through_ros(processes, tmp_path):
+    """A transmitter without the swarm key forges DSDV adverts (metric 1 to everyone)
+    from the start (sim_node's rogue, swarm_sim.rogue): the frames fail authentication at
+    every receiver, the mission's radio counts them, and the swarm forms the shape as
+    without it (docs/security.md)."""
+    out = tmp_path / 'rogue'
+    m = _launch(processes, out, '--composed', '--set-sim', '0:rogue=1')
+    assert m['outcome'] == 'settled', m
+    assert m['fraction_inside'] == 1.0
+    assert m['duplicate_goal_claims_final'] == 0
+    log = (out / 'logs' / 'mission_radio.log').read_text()
+    assert 'frames rejected by kind' in log and 'auth_bad_tag' in log, log[-2000:]
 
 
 if __name__ == '__main__':
