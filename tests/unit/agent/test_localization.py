@@ -256,7 +256,7 @@ def test_modes_lost_return_home_and_back():
     # one or two beacons are misses all the same (3.1.3).
     assert loc.stats == {'localizations': 2, 'misses': 4, 'rejected': 0, 'gated': 0,
                          'relocalizations': 0, 'partial': 0, 'range_updates': 5,
-                         'secondary': 0}
+                         'secondary': 0, 'uncertain': 0}
     np.testing.assert_allclose(loc.position, p, atol=0.2)
 
 
@@ -421,7 +421,7 @@ def test_consistent_fixes_reinitialize_a_wrong_filter_without_moving_its_velocit
     # precision given up, is too wide for range updates); the next takes the ranges.
     assert loc.stats == {'localizations': 3, 'misses': 0, 'rejected': 0,
                          'gated': config.max_gated, 'relocalizations': 1, 'partial': 0,
-                         'range_updates': 1, 'secondary': 0}
+                         'range_updates': 1, 'secondary': 0, 'uncertain': 0}
     assert np.hypot(*(loc.position - velocity * t)) < 1.0
     assert np.hypot(*(loc.velocity - velocity)) < 0.15
 
@@ -459,7 +459,9 @@ def test_fix_across_a_beacon_line_updates_along_the_line_only():
     line to 14 m (beyond ``max_fix_std``, where the linearised fix no
     longer describes the mirror and fold solutions). The filter, 2 m off in both axes
     with a 3 m deviation, takes the along-line component only: x is corrected to the
-    fix's precision, y stays where the IMU put it, and the tick is a localization.
+    fix's precision, y stays where the IMU put it. The estimate is still 3 m uncertain
+    across the line, beyond ``localized_max_std``: the tick is not a localization and
+    the agent stays LOST (3.1.3).
     """
     beacons = np.array([[-10.0, 0.0], [-2.0, 0.05], [12.0, -0.05]])
     truth = np.array([4.0, 0.1])
@@ -469,8 +471,9 @@ def test_fix_across_a_beacon_line_updates_along_the_line_only():
     assert worst > 2.5 * LocalizationConfig().max_fix_std
 
     loc = Localizer(LocalizationConfig(initial_position_std=3.0), truth + [2.0, 2.0])
-    assert loc.localize(3.0, [(b, r, 0.3) for b, r in zip(beacons, ranges)]) == Mode.NORMAL
-    assert loc.stats['partial'] == 1 and loc.stats['localizations'] == 1
+    assert loc.localize(3.0, [(b, r, 0.3) for b, r in zip(beacons, ranges)]) == Mode.LOST
+    assert loc.stats['partial'] == 1 and loc.stats['localizations'] == 0
+    assert loc.stats['uncertain'] == 1 and loc.missed_localizations == 1
     assert abs(loc.position[0] - truth[0]) < 0.1
     assert abs(loc.position[1] - (truth[1] + 2.0)) < 0.1
     assert np.sqrt(loc.kf.P[0, 0]) < 0.2 and np.sqrt(loc.kf.P[1, 1]) > 2.9

@@ -40,14 +40,16 @@ def test_two_beacons_and_an_anchor_localize_and_leave_the_agent_no_anchor():
     assert loc.beacon_only
 
 
-def test_anchors_are_not_used_when_the_beacons_suffice():
-    """With three beacons the anchors are ignored: an anchor whose advertised position
-    is 10 m off moves nothing, and the fix stays beacon-only."""
+def test_a_parked_agent_ignores_anchors_when_the_beacons_suffice():
+    """A parked agent (zero-velocity updates since its last tick) with three beacons
+    ignores the anchors: an anchor whose advertised position is 10 m off moves nothing,
+    and the fix stays beacon-only, so the agent can serve as an anchor itself."""
     loc = Localizer(LocalizationConfig(), TRUTH)
     beacons = BEACONS + [np.array([18.0, 16.0])]
     wrong = _ranges([ANCHOR])[0]
     wrong = (wrong[0] + [10.0, 0.0], wrong[1], wrong[2])
     for k in range(1, 4):
+        loc.stand_still()
         assert loc.localize(3.0 * k, _ranges(beacons), secondary=[wrong]) == Mode.NORMAL
     np.testing.assert_allclose(loc.position, TRUTH, atol=0.05)
     assert loc.beacon_only and loc.stats['secondary'] == 0

@@ -120,13 +120,14 @@ class KalmanFilter:
         return ranges, h
 
     def range_nis(self, beacons, ranges, variances, offset=(0.0, 0.0)) -> float:
-        """Normalised innovation squared of a set of ranges at the prediction.
+        """Normalised innovation squared of a set of ranges at the prediction
+        (``variances``: one per range, or their covariance matrix when they share errors).
 
         Chi-square with len(ranges) degrees of freedom when the filter, the beacons'
         positions and the ranges are consistent (and the linearisation holds).
         """
         predicted, h = self.range_model(self.x, np.asarray(beacons, float), offset)
-        s = h @ self.P @ h.T + np.diag(np.asarray(variances, float))
+        s = h @ self.P @ h.T + _noise(variances)
         y = np.asarray(ranges, float) - predicted
         return float(y @ np.linalg.solve(s, y))
 
@@ -134,13 +135,14 @@ class KalmanFilter:
                       iterations: int = 5) -> None:
         """Iterated extended Kalman update with TOA ranges (Gauss-Newton on the prior
         and the ranges, the maximum a posteriori estimate; Joseph form at the end).
+        ``variances``: one per range, or their covariance matrix.
 
         The linearisation is taken at the current iterate, not at the prediction, so
         the curvature of the range circles costs nothing once the iteration converges.
         """
         beacons = np.asarray(beacons, float)
         z = np.asarray(ranges, float)
-        r = np.diag(np.asarray(variances, float))
+        r = _noise(variances)
         x0, p0 = self.x.copy(), self.P
         x = x0
         for _ in range(iterations):
@@ -158,3 +160,9 @@ class KalmanFilter:
     def update_velocity(self, z, R) -> None:
         """Measurement update with a velocity z (2,) of covariance R (H = [0 I 0])."""
         self.update(np.roll(self._h, 2, axis=1), z, R)
+
+
+def _noise(variances) -> np.ndarray:
+    """Measurement covariance from per-measurement variances (1-D) or a full matrix."""
+    v = np.asarray(variances, float)
+    return np.diag(v) if v.ndim == 1 else v

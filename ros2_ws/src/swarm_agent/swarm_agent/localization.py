@@ -7,6 +7,14 @@ NORMAL as soon as it localizes again. Beacons update from their GPS fixes instea
 measurements (NaN, degenerate geometry) count as a miss; nothing raises into the agent
 loop.
 
+A localization is a bounded error, not only three ranges: every range is weighed by its
+own deviation (the range noise and its anchor's advertised position error), so the
+posterior covariance carries the anchors' errors and their geometry (a narrow sector,
+or anchors nearly in line with the agent, leave the position poorly determined across
+them). A tick whose measurements leave the worst axis above ``localized_max_std`` still
+updates the filter but is a miss: the agent stays LOST (3.1.3) until its error is
+bounded (``Localizer._localized``).
+
 Beyond the thesis, while the filter's prior is narrow enough for the range circles to
 be linearised over it, the ranges update the filter directly (iterated EKF,
 ``KalmanFilter.update_ranges``) instead of through a trilaterated fix: the prior then
@@ -18,20 +26,24 @@ thesis does.
 
 Secondary anchors (beyond the thesis; Kilobot swarms self-assemble by robots localizing
 from already localized neighbours). An agent whose tick finds fewer than
-``min_beacons`` beacons ranges also to *secondary anchors*: neighbours that are parked,
+``min_beacons`` beacons, or that is moving (no zero-velocity update since its last tick,
+``anchors_while_moving``), ranges also to *secondary anchors*: neighbours that are parked,
 whose worst-axis deviation is below ``anchor_max_std``, and whose estimate has come from
 beacons alone since their last fix of three beacons or more (``beacon_only``). Their
 advertised deviation adds to the range noise as a beacon's does (the brain weighs
 them). The hierarchy has two levels, so there is no feedback loop: an anchor has
 anchored on no agent since its last fix from beacons alone, and an agent that anchors on
-one is not an anchor until such a fix. A tick with enough anchors counts as a
-localization (NORMAL), as one with enough beacons does.
+one is not an anchor until such a fix, which a parked agent with enough beacons takes
+(it ignores anchors then). Parked anchors have had their zero-velocity updates and
+are typically known to 0.1-0.5 m, moving beacons (2 m GPS) to 0.5-1.5 m, and they
+surround an agent inside the formation where the beacons may all stand on one side.
+A tick with enough anchors counts as a localization, as one with enough beacons does.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import enum
 import logging
 import math
@@ -46,7 +58,10 @@ from swarm_common.parameters import tunable
 
 LOG = logging.getLogger(__name__)
 MG = 9.80665e-3  # m/s^2 per milli-g
-Anchor = tuple[np.ndarray, float, float]   # position (m), range (m), range std (m)
+# position (m), range (m), range std (m) and, for a secondary anchor, the part of that
+# std which is its own position error (m), which anchors share (module docstring)
+Anchor = tuple[np.ndarray, float, float] | tuple[np.ndarray, float, float, float]
+Row = tuple[np.ndarray, float, float, float]
 GATE_1DOF = 10.83  # chi-square (1 dof, 99.9 %)
 # A range's Jacobian is the unit vector to its beacon, known within about one deviation
 # of the prior over the range (radians): a range update needs it within 0.25 rad.
@@ -112,6 +127,14 @@ class LocalizationConfig:
     anchor_max_std: float = tunable(
         0.5, 'An agent serves as a secondary anchor only below this worst-axis std, m',
         low=0.01, high=10.0, live=True)
+    # 1.5 m / 3: the 99 % error ellipse (chi-square 2 dof: 3.03 deviations) of a fix
+    # whose worst axis is at most this lies within 1.5 m.
+    localized_max_std: float = tunable(
+        0.5, 'A tick localizes (NORMAL) only if it leaves the worst-axis std below this, m',
+        low=0.01, high=100.0, live=True)
+    anchors_while_moving: bool = tunable(
+        True, 'A moving agent ranges to secondary anchors even with enough beacons',
+        live=True)
 
 
 def _chi2_999(dof: int) -> float:
@@ -119,11 +142,54 @@ def _chi2_999(dof: int) -> float:
     return float(chdtri(dof, 0.001))
 
 
-def _usable(anchors: Sequence[tuple[np.ndarray, float, float]]
-            ) -> list[tuple[np.ndarray, float, float]]:
-    """(position, range, std) of the anchors whose numbers are finite, std positive."""
-    return [(np.asarray(p, float), float(r), float(s)) for p, r, s in anchors
-            if np.all(np.isfinite(p)) and np.isfinite(r) and np.isfinite(s) and s > 0]
+def _usable(anchors: Sequence[Anchor], shared: bool = False) -> list[Row]:
+    """(position, range, std, shared std) of the anchors whose numbers are finite, std
+    positive; the shared std is the anchor's position error for secondary anchors
+    (``shared``), 0 for beacons, whose GPS errors are their own."""
+    rows = []
+    for p, r, s, *own in anchors:
+        c = min(float(own[0]), float(s)) if shared and own else 0.0
+        if np.all(np.isfinite(p)) and np.isfinite(r) and np.isfinite(s) and s > 0 \
+                and np.isfinite(c):
+            rows.append((np.asarray(p, float), float(r), float(s), max(c, 0.0)))
+    return rows
+
+
+def range_covariance(rows: Sequence[Row], at) -> np.ndarray:
+    """Covariance of the rows' range errors seen from ``at`` (m^2).
+
+    A beacon's range error is its own (range noise and its GPS-fed estimate). Secondary
+    anchors localized from the same few beacons share those beacons' errors: a common
+    displacement d of every anchor, which changes the range to anchor k by u_k . d (u_k
+    the unit vector from the agent to it). Any error they all share is at most the
+    smallest one's, so d is taken with that variance, c^2 = min_k c_k^2, on every axis:
+    R = diag(s_k^2 - c^2 [k anchor]) + c^2 U U^T over the anchors, each range's own
+    variance s_k^2 unchanged. Averaging more anchors then cannot bring the fix below
+    c across any axis, as their common error does not average out.
+    """
+    variances = np.array([u[2] ** 2 for u in rows])
+    shared = [k for k, u in enumerate(rows) if u[3] > 0.0]
+    cov = np.diag(variances)
+    if len(shared) < 2:
+        return cov
+    c2 = min(rows[k][3] for k in shared) ** 2
+    d = np.array([rows[k][0] for k in shared]) - np.asarray(at, float)
+    unit = d / np.maximum(np.linalg.norm(d, axis=1), 1e-9)[:, None]
+    block = np.ix_(shared, shared)
+    cov[block] += c2 * (unit @ unit.T - np.eye(len(shared)))
+    return cov
+
+
+def _fix_covariance(fix, rows: Sequence[Row]) -> np.ndarray:
+    """Covariance of a fix weighed by the rows' own deviations when their errors are
+    ``range_covariance``: the sandwich A J^T W R W J A, A = (J^T W J)^-1, W = diag(1 /
+    s_k^2) (equal to A when the errors are independent)."""
+    pos = np.array([u[0] for u in rows])
+    d = fix.position - pos
+    jac = d / np.maximum(np.linalg.norm(d, axis=1), 1e-9)[:, None]
+    wj = jac / np.array([u[2] ** 2 for u in rows])[:, None]
+    a = fix.covariance
+    return a @ wj.T @ range_covariance(rows, fix.position) @ wj @ a
 
 
 def anchor_ranges(ranges: Sequence[tuple[int, float, float]], neighbours: Mapping[int, Any],
@@ -137,7 +203,7 @@ def anchor_ranges(ranges: Sequence[tuple[int, float, float]], neighbours: Mappin
     Where the anchor was when the range was measured: its last heartbeat extrapolated
     with its own velocity estimate. Its own position uncertainty, inflated by
     ``inflation`` (``beacon_variance_inflation``: the error persists), adds to the range
-    noise.
+    noise; a secondary anchor's tuple ends with that part of its std.
     """
     beacons: list[Anchor] = []
     anchors: list[Anchor] = []
@@ -155,15 +221,21 @@ def anchor_ranges(ranges: Sequence[tuple[int, float, float]], neighbours: Mappin
             continue
         where = np.asarray(info.position) + (ranges_at - heard.heard_at) * np.asarray(
             info.velocity)
-        into.append((where, rng_m, math.hypot(std, info.position_std * scale)))
+        own = info.position_std * scale
+        # A beacon's error is its own GPS's; anchors carry theirs, which they share.
+        row = (where, rng_m, math.hypot(std, own))
+        into.append(row if into is beacons else (*row, own))
     return beacons, anchors
 
 
-def _ranges_only(beacons: np.ndarray, ranges: np.ndarray, std: float, fallback):
-    """The fix from the ranges alone (eqs. 3.8-3.17 and Gauss-Newton, no prior)."""
+def _ranges_only(rows: Sequence[Row], fallback):
+    """The fix from the ranges alone (eqs. 3.8-3.17 and Gauss-Newton, no prior), its
+    covariance with the anchors' shared error (``range_covariance``)."""
     try:
-        free = trilaterate(beacons, ranges, range_std=std)
-    except (DegenerateGeometryError, ValueError):
+        free = trilaterate(np.array([u[0] for u in rows]), np.array([u[1] for u in rows]),
+                           range_std=np.array([u[2] for u in rows]))
+        free = replace(free, covariance=_fix_covariance(free, rows))
+    except (DegenerateGeometryError, ValueError, np.linalg.LinAlgError):
         return fallback
     return free if np.all(np.isfinite(free.covariance)) else fallback
 
@@ -185,12 +257,14 @@ class Localizer:
         self._t: float | None = None
         self.stats = {'localizations': 0, 'misses': 0, 'rejected': 0, 'gated': 0,
                       'relocalizations': 0, 'partial': 0, 'range_updates': 0,
-                      'secondary': 0}
+                      'secondary': 0, 'uncertain': 0}
         # The estimate has come from beacons alone since the last fix of min_beacons
         # beacons (module docstring, "Secondary anchors"); a deployment prior has not.
         self.beacon_only = False
         # Fixes gated in a row: (fix, its covariance, its time).
         self._gated: list[tuple[np.ndarray, np.ndarray, float]] = []
+        # A zero-velocity update since the last tick: the robot stands parked.
+        self._standing = False
 
     @property
     def position(self) -> np.ndarray:
@@ -288,6 +362,7 @@ class Localizer:
         """
         std = self.config.zero_velocity_std
         self.kf.update_velocity(np.zeros(2), np.eye(2) * std ** 2)
+        self._standing = True
 
     def gps_update(self, t: float, position, std: float) -> None:
         """Absolute fix (beacons; camera poses on hardware)."""
@@ -311,7 +386,10 @@ class Localizer:
         shift = np.asarray(displacement, dtype=float)
         usable = _usable(beacons)
         enough = len(usable) >= self.config.min_beacons
-        extra = _usable(secondary) if secondary and not enough else []
+        moving = self.config.anchors_while_moving and not self._standing
+        self._standing = False
+        extra = _usable(secondary, shared=True) if secondary and (moving or not enough) \
+            else []
         before = self._updates()
         mode = self._tick(t, usable + extra, shift)
         if self._updates() != before:
@@ -324,24 +402,24 @@ class Localizer:
 
     def _updates(self) -> tuple[int, ...]:
         s = self.stats
-        return s['localizations'], s['range_updates'], s['partial'], s['relocalizations']
+        return (s['localizations'], s['range_updates'], s['partial'], s['relocalizations'],
+                s['uncertain'])
 
-    def _tick(self, t: float, usable: list[tuple[np.ndarray, float, float]],
-              shift: np.ndarray) -> Mode:
+    def _tick(self, t: float, usable: list[Row], shift: np.ndarray) -> Mode:
         """``localize`` with the anchors chosen and checked."""
         tight = self._range_update(usable, shift) if usable else None
         enough = len(usable) >= self.config.min_beacons
         if enough:
             pos = np.array([u[0] for u in usable])
             rng = np.array([u[1] for u in usable])
-            std = float(np.sqrt(np.mean([u[2] ** 2 for u in usable])))
+            std = np.array([u[2] for u in usable])
         if enough and tight is not None:
             if tight:
                 self._gated.clear()
                 self._localized()
                 return self.mode
             # Ranges inconsistent with the filter: judge them by a fix of their own.
-            free = _ranges_only(pos, rng, std, None)
+            free = _ranges_only(usable, None)
             if free is not None and free.residual <= self.config.max_residual:
                 self._gate(t, free.position + shift, free.covariance)
                 return self.mode
@@ -351,7 +429,8 @@ class Localizer:
         elif enough:
             try:
                 fix = trilaterate(pos, rng, initial=self.position - shift, range_std=std)
-            except (DegenerateGeometryError, ValueError) as exc:
+                fix = replace(fix, covariance=_fix_covariance(fix, usable))
+            except (DegenerateGeometryError, ValueError, np.linalg.LinAlgError) as exc:
                 LOG.debug('trilateration rejected: %s', exc)
                 self.stats['rejected'] += 1
             else:
@@ -367,7 +446,7 @@ class Localizer:
                     # trilateration keeps the prior's side of a mirror ambiguity, and
                     # the prior is what may be wrong (a filter locked on the mirror
                     # image of the robot would only ever be confirmed).
-                    free = _ranges_only(pos, rng, std, fix)
+                    free = _ranges_only(usable, fix)
                     self._gate(t, free.position + shift, free.covariance)
                     return self.mode
                 else:
@@ -375,19 +454,22 @@ class Localizer:
                     self.kf.update_position(z, fix.covariance)
                     self._localized()
                     return self.mode
+        return self._miss()
+
+    def _miss(self) -> Mode:
+        """A tick without a localization: LOST, RETURN_HOME after ``misses_before_home``
+        in a row (3.1.3)."""
         self.missed_localizations += 1
         self.stats['misses'] += 1
         # 3.1.3 sends an agent home because without trilaterations its estimate drifts;
         # one whose ranges to one or two beacons keep it within ``home_position_std``
         # (along its worst axis) drives on to its goal, LOST.
-        spread = float(np.sqrt(np.linalg.eigvalsh(self.kf.P[:2, :2])[-1]))
         home = (self.missed_localizations >= self.config.misses_before_home
-                and spread > self.config.home_position_std)
+                and self.worst_std > self.config.home_position_std)
         self.mode = Mode.RETURN_HOME if home else Mode.LOST
         return self.mode
 
-    def _range_update(self, usable: list[tuple[np.ndarray, float, float]],
-                      shift: np.ndarray) -> bool | None:
+    def _range_update(self, usable: list[Row], shift: np.ndarray) -> bool | None:
         """Update the filter with the ranges themselves (iterated EKF).
 
         None when it does not apply: range updates are off, or the prior is too wide for
@@ -409,14 +491,25 @@ class Localizer:
             return None
         beacons = np.array([u[0] for u in linear])
         ranges = np.array([u[1] for u in linear])
-        variances = np.array([u[2] ** 2 for u in linear])
-        if self.kf.range_nis(beacons, ranges, variances, shift) > _chi2_999(len(linear)):
+        cov = range_covariance(linear, self.position - shift)
+        if self.kf.range_nis(beacons, ranges, cov, shift) > _chi2_999(len(linear)):
             return False
-        self.kf.update_ranges(beacons, ranges, variances, shift)
+        self.kf.update_ranges(beacons, ranges, cov, shift)
         self.stats['range_updates'] += 1
         return True
 
     def _localized(self) -> None:
+        """The filter took the tick's measurements. It is a localization (NORMAL) only
+        when they leave the estimate within ``localized_max_std`` along its worst axis:
+        anchors in a narrow sector or nearly in line with the agent determine it poorly
+        across them (their geometric dilution of precision), and their own errors weigh
+        in through their advertised deviations, so the posterior covariance bounds the
+        error the fix leaves. A poorer fix still updates the filter, but the agent is
+        not localized yet: the tick is a miss and the agent stays LOST (3.1.3)."""
+        if self.worst_std > self.config.localized_max_std:
+            self.stats['uncertain'] += 1
+            self._miss()
+            return
         self.mode = Mode.NORMAL
         self.missed_localizations = 0
         self.stats['localizations'] += 1
