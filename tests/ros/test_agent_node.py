@@ -16,7 +16,7 @@ from rclpy.qos import QoSProfile  # noqa: E402
 from spin import beacon_agent  # noqa: E402
 
 from swarm_agent.agent_node import AgentNode  # noqa: E402
-from swarm_agent.brain import BrainConfigError  # noqa: E402
+from swarm_agent.brain_config import BrainConfigError  # noqa: E402
 from swarm_agent.conversions import frames_from_msg  # noqa: E402
 from swarm_common import qos  # noqa: E402
 from swarm_common.conversions import goals_to_msg, shape_to_msg  # noqa: E402

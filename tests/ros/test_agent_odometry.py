@@ -21,7 +21,7 @@ from spin import ros_context, sim_world, spin_until  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
 
 from swarm_agent.agent_node import AgentNode, make_executor  # noqa: E402
-from swarm_agent.brain import BrainConfigError  # noqa: E402
+from swarm_agent.brain_config import BrainConfigError  # noqa: E402
 from swarm_agent.composed_node import ComposedAgents  # noqa: E402
 from swarm_agent.conversions import yaw_of, yaw_quaternion  # noqa: E402
 from swarm_agent.hw_agent_node import HwAgentNode  # noqa: E402

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from swarm_agent.agent_factory import make_brain
-from swarm_agent.brain import BrainConfigError
+from swarm_agent.brain_config import BrainConfigError
 from swarm_agent.localization import Localizer, Mode
 from swarm_agent.trilateration import trilaterate
 

@@ -10,7 +10,7 @@ import dataclasses
 import pytest
 
 from swarm_agent.agent_factory import make_brain
-from swarm_agent.brain import BrainConfig
+from swarm_agent.brain_config import BrainConfig
 from swarm_agent.dsdv import DsdvConfig
 from swarm_agent.forces import ForceParams
 from swarm_agent.localization import LocalizationConfig

@@ -13,7 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from swarm_agent.brain import AgentBrain, BrainConfig, BrainConfigError
+from swarm_agent.brain import AgentBrain
+from swarm_agent.brain_config import BrainConfig, BrainConfigError
 from swarm_agent.frame_auth import FrameAuth, Keyring, load_keyring
 from swarm_agent.localization import LocalizationConfig
 from swarm_agent.lqr import design_lqr

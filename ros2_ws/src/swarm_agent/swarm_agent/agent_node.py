@@ -72,7 +72,7 @@ from sensor_msgs.msg import Imu
 from tf2_msgs.msg import TFMessage
 
 from swarm_agent.agent_factory import DEFAULT_KEY_FILE, make_brain, swarm_keyring, type_counts_from
-from swarm_agent.brain import BrainConfig, BrainConfigError
+from swarm_agent.brain_config import BrainConfig, BrainConfigError
 from swarm_agent.conversions import (
     frames_or_log,
     frames_to_msg,

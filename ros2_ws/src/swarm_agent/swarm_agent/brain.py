@@ -37,7 +37,7 @@ force command; ``snapshot()`` the estimate, mode and assignment for introspectio
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 import logging
 import math
 import zlib
@@ -47,12 +47,13 @@ import shapely
 
 from swarm_agent.assignment import assign
 from swarm_agent.assignment import SHARED as SHARED_ASSIGNMENTS
+from swarm_agent.brain_config import BrainConfig
 from swarm_agent.costs import class_costs, VisibilityGraph
-from swarm_agent.dsdv import DsdvConfig, DsdvRouter
-from swarm_agent.forces import ForceParams, formation_force
+from swarm_agent.dsdv import DsdvRouter
+from swarm_agent.forces import formation_force
 from swarm_agent.frame_auth import FrameAuth
 from swarm_agent.free_space import grow_obstacles
-from swarm_agent.localization import anchor_ranges, LocalizationConfig, Localizer, Mode
+from swarm_agent.localization import anchor_ranges, Localizer, Mode
 from swarm_agent.lqr import LqrGains, VelocityLoop
 from swarm_agent.mesh_messages import (
     CostRow,
@@ -62,17 +63,13 @@ from swarm_agent.mesh_messages import (
     NeighbourInfo,
 )
 from swarm_agent.packet import Kind, Packet
-from swarm_agent.setpoint import avoid_collisions, SetpointParams, velocity_setpoint
+from swarm_agent.setpoint import avoid_collisions, velocity_setpoint
 from swarm_common.goals import Goal
-from swarm_common.parameters import tunable
-from swarm_common.robot_types import load_robot_types, RobotType
+from swarm_common.robot_types import RobotType
 from swarm_common.shapes import Shape
 from swarm_mission.contour import sample_boundary
 
 LOG = logging.getLogger(__name__)
-
-METHODS = ('bubble', 'fractal', 'forces')
-
 
 def _next_tick(due: float, t: float, period: float) -> float:
     """The next due time after ``t`` on the grid ``due + k * period`` (no catch-up bursts)."""
@@ -81,71 +78,6 @@ def _next_tick(due: float, t: float, period: float) -> float:
 
 def _inside(shape: Shape, point: np.ndarray) -> bool:
     return bool(shapely.contains_xy(shape.region, float(point[0]), float(point[1])))
-
-
-class BrainConfigError(ValueError):
-    """A brain parameter that cannot be used."""
-
-
-@dataclass
-class BrainConfig:
-    """Per-agent parameters. Rates follow thesis 4 (2 Hz outer loop, 3 s localization)."""
-
-    agent_id: int
-    agent_type: int
-    is_beacon: bool = False
-    method: str = 'bubble'
-    outer_period_s: float = tunable(
-        0.5, 'Period of the outer loop (setpoint, forces), s (thesis 2 Hz)', low=0.01,
-        high=10.0)
-    # Cost rows are flooded once per consensus round: every robot's row to every robot
-    # is O(N^2) frames, so rounds are slower than the 2 Hz setpoint loop (measured on the
-    # 50-agent thesis scenario: 0.5 s rounds made routing 90 % of the evaluator's time).
-    consensus_period_s: float = tunable(
-        2.0, 'Period of cost reports and Hungarian assignment rounds, s', low=0.01,
-        high=60.0)
-    settle_speed: float = tunable(0.01, 'Below this speed a robot counts as settled, m/s '
-                                  '(eq. 4.1)', low=0.0, high=1.0, live=True)
-    neighbour_stale_s: float = tunable(3.0, 'Neighbour info older than this is ignored, s',
-                                       low=0.1, high=60.0, live=True)
-    range_stale_s: float = tunable(2.0, 'TOA ranges older than this are not used, s',
-                                   low=0.01, high=60.0, live=True)
-    proximity_stale_s: float = tunable(0.5, 'Proximity scans older than this are not used, s',
-                                       low=0.01, high=10.0, live=True)
-    forces_contour_step: float = tunable(
-        0.05, 'Boundary sample spacing of the forces method, m', low=0.005, high=5.0)
-    hold_radius: float = tunable(0.3, 'Within this distance of its goal the robot parks, m',
-                                 low=0.001, high=10.0, live=True)
-    resume_radius: float = tunable(0.8, 'A parked robot moves again beyond this distance, m',
-                                   low=0.001, high=20.0, live=True)
-    # A parked robot (zero force) has stopped after this long (dry friction stops one at
-    # 0.5 m/s within a second); from then on its velocity is known to be zero.
-    stand_still_after_s: float = tunable(
-        2.0, 'A parked robot has stopped after this long: zero-velocity updates, s',
-        low=0.0, high=60.0, live=True)
-    localization: LocalizationConfig = field(default_factory=LocalizationConfig)
-    dsdv: DsdvConfig = field(default_factory=DsdvConfig)
-    setpoint: SetpointParams = field(default_factory=SetpointParams)
-    forces: ForceParams = field(default_factory=ForceParams)
-    type_radii: dict[int, float] = field(default_factory=lambda: {
-        t: r.coverage_radius for t, r in load_robot_types().items()})
-
-    def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise BrainConfigError(
-                f'unknown formation method {self.method!r}; use one of {", ".join(METHODS)}')
-        if not 0 <= self.agent_id < 0xFFFF:
-            raise BrainConfigError(f'agent_id must be in 0..65534, got {self.agent_id}')
-        if self.outer_period_s <= 0:
-            raise BrainConfigError('outer_period_s must be positive')
-        if self.consensus_period_s < self.outer_period_s:
-            raise BrainConfigError(
-                f'consensus_period_s ({self.consensus_period_s}) must be at least '
-                f'outer_period_s ({self.outer_period_s})')
-        if not 0.0 < self.hold_radius < self.resume_radius:
-            raise BrainConfigError(
-                f'hold_radius ({self.hold_radius} m) must be positive and below '
-                f'resume_radius ({self.resume_radius} m)')
 
 
 @dataclass

@@ -67,7 +67,7 @@ from swarm_agent.agent_node import (
     RadioBatcher,
     set_brain_parameters,
 )
-from swarm_agent.brain import BrainConfigError
+from swarm_agent.brain_config import BrainConfigError
 from swarm_agent.conversions import sensor_batch_from_msg, stamp_seconds
 from swarm_agent.packet import PacketError
 from swarm_common import qos

@@ -193,10 +193,8 @@ class DsdvRouter:
 
     def set_heartbeat_info(self, info: bytes | Callable[[], bytes]) -> None:
         """Small application blob carried by every heartbeat (at most 79 bytes: the
-        frame body ``packet.MAX_BODY`` less the sequence number).
-
-        A callable is asked for the blob only when a heartbeat goes out.
-        """
+        frame body ``packet.MAX_BODY`` less the sequence number); a callable is asked
+        for it only when a heartbeat goes out."""
         self._info = info if callable(info) else bytes(info)
 
     # ------------------------------------------------------------------ queries
@@ -332,8 +330,7 @@ class DsdvRouter:
         return out
 
     def _count_beat(self, t: float, neighbour: int) -> None:
-        """Heartbeats are sent every ``heartbeat_period_s``: the time since the last one
-        heard tells how many were sent, so how many were lost."""
+        """The time since the neighbour's last heartbeat heard tells how many it sent."""
         beats = self._beats.get(neighbour)
         if beats is None:
             self._beats[neighbour] = [t, 1.0, 1.0]
