@@ -128,7 +128,8 @@ def test_a_restarted_mission_node_publishes_the_shape_set_at_run_time_again(tmp_
             executor.add_node(mission)
             executor.add_node(probe)
             try:
-                assert spin_until(executor, lambda: bool(goals), timeout=20.0)
+                # Shape and goals are two topics: either may arrive first.
+                assert spin_until(executor, lambda: bool(goals) and bool(shapes), timeout=20.0)
                 if set_shape:
                     client = probe.create_client(SetShape, '/swarm/set_shape')
                     request = SetShape.Request(shape=shape_to_msg(
@@ -136,7 +137,8 @@ def test_a_restarted_mission_node_publishes_the_shape_set_at_run_time_again(tmp_
                     future = client.call_async(request)
                     assert spin_until(executor, future.done, timeout=20.0)
                     assert future.result().success, future.result().message
-                    assert spin_until(executor, lambda: goals[-1].version == 2, timeout=20.0)
+                    assert spin_until(executor, lambda: goals[-1].version == 2
+                                      and shapes[-1].version == 2, timeout=20.0)
             finally:
                 mission.destroy_node()
                 probe.destroy_node()
