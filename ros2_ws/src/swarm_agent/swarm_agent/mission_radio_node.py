@@ -34,7 +34,7 @@ from swarm_agent.frame_auth import FrameAuth
 from swarm_agent.mission_radio import MeshListener
 from swarm_common import qos
 from swarm_common.fleet import load_fleet
-from swarm_common.robot_types import parse_type_counts
+from swarm_common.robot_types import agent_types_of, parse_type_counts
 from swarm_common.ros_support import run_node
 from swarm_msgs.msg import RadioPacketArray
 
@@ -61,8 +61,7 @@ class MissionRadioNode(Node):
         if p['fleet_file']:
             agents = [r.id for r in load_fleet(p['fleet_file'])]
         else:
-            counts = parse_type_counts(p['type_counts'])
-            agents = list(range(sum(counts.values())))
+            agents = list(agent_types_of(parse_type_counts(p['type_counts'])))
         keyring = swarm_keyring(p['swarm_key_file'] or None) if p['auth'] else None
         self.radio = MeshListener(agents, auth=FrameAuth(keyring) if keyring else None)
         self._rejected = 0

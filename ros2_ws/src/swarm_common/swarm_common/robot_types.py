@@ -121,6 +121,12 @@ def parse_type_counts(spec: str) -> dict[int, int]:
     return counts
 
 
+def agent_types_of(counts: dict[int, int]) -> dict[int, int]:
+    """Agent id -> robot type of a swarm given by its composition: ids 0.. in type order
+    (the fleet the launcher generates from counts, and the nodes that read only counts)."""
+    return dict(enumerate(t for t in sorted(counts) for _ in range(counts[t])))
+
+
 def default_type_counts(n_agents: int) -> dict[int, int]:
     """Split ``n_agents`` over types 1..3 in the thesis proportions 20:20:10."""
     if n_agents <= 0:

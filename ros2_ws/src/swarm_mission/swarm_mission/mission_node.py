@@ -39,7 +39,12 @@ import yaml
 
 from swarm_common import qos
 from swarm_common.conversions import goals_to_msg, shape_from_msg, shape_to_msg
-from swarm_common.robot_types import load_robot_types, parse_type_counts, RobotTypeError
+from swarm_common.robot_types import (
+    agent_types_of,
+    load_robot_types,
+    parse_type_counts,
+    RobotTypeError,
+)
 from swarm_common.ros_support import run_node
 from swarm_common.shapes import load_shape, ShapeError
 from swarm_mission import mission_state
@@ -114,8 +119,7 @@ class MissionNode(Node):
             agent_types, beacons = _fleet(p['fleet_file'])
         else:
             beacons = None
-            counts = parse_type_counts(p['type_counts'])
-            agent_types = dict(enumerate(t for t in sorted(counts) for _ in range(counts[t])))
+            agent_types = agent_types_of(parse_type_counts(p['type_counts']))
         for t in set(agent_types.values()):
             if t not in types:
                 raise RobotTypeError(f'agent_types holds unknown robot type {t}; '
