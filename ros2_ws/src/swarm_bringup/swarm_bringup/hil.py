@@ -4,9 +4,10 @@ and the analysis of a run.
 The processes of one shape as launch-plan entries (swarm_bringup.launch_plan.NodeSpec):
 the emulated arena (``hil_world_node``), the camera tracker, the XBee bridge, one
 ``hw_agent_node`` per robot and the mission node. The analysis reads the camera tracks:
-total displacement (summed track lengths), settling time (eq. 5.4), the displacement
-lower bound (optimal assignment of straight paths to the goals) and each robot's final
-distance to its goal, reported next to thesis Tables 5.2-5.6. Pure: no ROS import.
+total displacement (summed track lengths), settling time (eq. 5.4), arrival time (every
+robot at a distinct goal and still, held: the end of a run), the displacement lower bound
+(optimal assignment of straight paths to the goals) and each robot's final distance to
+its goal, reported next to thesis Tables 5.2-5.6. Pure: no ROS import.
 """
 
 from __future__ import annotations
@@ -30,8 +31,8 @@ THESIS_TABLE = {'hw_trapezoid': '5.2', 'hw_square': '5.3', 'hw_pentagon': '5.4',
                 'hw_arrow': '5.5', 'hw_line': '5.6'}
 SPEED_WINDOW = 0.5        # s: camera speed = displacement over this window / window
 GRID_HZ = 10.0            # common time grid of the recorded camera tracks
-
-
+ARRIVE_SIGMAS = 2.0       # arrival tolerance: the agents' parking radius + this many
+                          # camera standard deviations (their estimate of where they park)
 
 
 def bridge_config(name: str) -> pathlib.Path:
@@ -46,7 +47,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument('--duration', type=float, default=90.0,
                    help='seconds at most per shape after the shape is announced')
     p.add_argument('--settle-hold', type=float, default=3.0,
-                   help='seconds the swarm must stay settled (eq. 5.4) to end a run')
+                   help='seconds the swarm must stay arrived (every robot at a distinct '
+                        'goal and still) to end a run; also the hold of eq. 5.4')
+    p.add_argument('--arrive-tolerance', type=float, default=None,
+                   help='m from its goal a robot counts as arrived (default: '
+                        "config/hw_agent.yaml's hold_radius + 2 external_pose_std)")
     p.add_argument('--camera-noise', type=float, default=None,
                    help='camera position noise, m (default: config/hil.yaml)')
     p.add_argument('--radio-loss', type=float, default=None,
@@ -66,6 +71,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         p.error(f'--shape {args.shape!r}: use one of {", ".join(SHAPES)} or all')
     if args.duration <= 0 or args.settle_hold < 0:
         p.error('--duration must be positive and --settle-hold non-negative')
+    if args.arrive_tolerance is not None and args.arrive_tolerance <= 0:
+        p.error(f'--arrive-tolerance {args.arrive_tolerance}: give a distance above 0 m')
     if args.radio_loss is not None and not 0.0 <= args.radio_loss <= 1.0:
         p.error(f'--radio-loss {args.radio_loss}: give a probability between 0 and 1')
     if args.camera not in ('truth', 'sim') and not args.calibration:
@@ -101,10 +108,14 @@ def speeds(times: np.ndarray, positions: np.ndarray,
 
 
 def analyse(times: np.ndarray, positions: np.ndarray, shape, types: np.ndarray,
-            goals: list, radii: dict[int, float], hold_s: float = 0.0) -> dict:
+            goals: list, radii: dict[int, float], hold_s: float = 0.0,
+            arrive_tol: float | None = None) -> dict:
     """Metrics of one run: displacement, settling time (eq. 5.4, held ``hold_s`` seconds
-    to the end of the run), bounds, goal errors."""
+    to the end of the run), arrival time (``arrival_from_record``, tolerance
+    ``arrive_tol``, default ``arrival_tolerance()``), bounds, goal errors."""
     from swarm_sim.metrics import displacement_lower_bound, path_lengths, settle_from_record
+
+    tol = arrival_tolerance() if arrive_tol is None else arrive_tol
 
     velocities = speeds(times, positions)
     final = positions[-1]
@@ -117,6 +128,9 @@ def analyse(times: np.ndarray, positions: np.ndarray, shape, types: np.ndarray,
         mine = goal_xy[goal_types == t]
         errors.append(float(np.min(np.hypot(*(mine - final[i]).T))) if len(mine) else math.nan)
     inside = [bool(shape.region.contains(_point(p))) for p in final]
+    typed = sorted(types.tolist()) == sorted(goal_types.tolist())
+    arrival = (arrival_from_record(times, positions, velocities, types, goals, tol, hold_s)
+               if typed else {'arrival_time': None})
     return {
         'total_displacement': float(path_lengths(positions).sum()),
         'per_robot_displacement': [float(d) for d in path_lengths(positions)],
@@ -125,7 +139,10 @@ def analyse(times: np.ndarray, positions: np.ndarray, shape, types: np.ndarray,
         'displacement_lower_bound': displacement_lower_bound(
             positions[0], goal_xy[np.argsort(goal_types, kind='stable')],
             np.sort(types, kind='stable'), shape, radii)
-        if sorted(types.tolist()) == sorted(goal_types.tolist()) else math.nan,
+        if typed else math.nan,
+        'arrival_time': arrival['arrival_time'],
+        'arrival_tolerance': tol,
+        'final_arrival_error': arrival_error(final, types, goals) if typed else math.nan,
         'final_goal_error': errors,
         'all_inside': all(inside),
         'final_speed_max': float(np.linalg.norm(velocities[-1], axis=1).max()),
@@ -150,6 +167,77 @@ def record_settled(tracks: list[list[tuple[float, float, float]]], t0: float, no
     times, positions = resample(tracks, t0, now)
     return settle_from_record(times, positions, speeds(times, positions), shape,
                               hold_s=hold_s)
+
+
+def arrival_tolerance() -> float:
+    """How close to a goal a robot has arrived: config/hw_agent.yaml's ``hold_radius`` (an
+    agent parks when its estimate is that close) plus ``ARRIVE_SIGMAS`` times its
+    ``external_pose_std`` (the camera error of that estimate): 0.02 + 2 x 0.01 m."""
+    import yaml
+
+    params = yaml.safe_load(bridge_config('hw_agent.yaml').read_text())['/**']['ros__parameters']
+    return float(params['hold_radius']) + ARRIVE_SIGMAS * float(params['external_pose_std'])
+
+
+def arrival_error(points: np.ndarray, types: np.ndarray, goals: list) -> float:
+    """The smallest distance d such that every robot (``points`` (N, 2), ``types`` (N,))
+    lies within d of a goal of its type, a distinct goal each: per type the bottleneck
+    assignment of robots to goals, the largest over the types."""
+    from swarm_sim.metrics import bottleneck_value
+
+    goal_xy = np.array([[g.x, g.y] for g in goals], dtype=float).reshape(-1, 2)
+    goal_types = np.array([g.type for g in goals])
+    worst = 0.0
+    for t in np.unique(types):
+        mine, theirs = points[types == t], goal_xy[goal_types == t]
+        if len(mine) != len(theirs):
+            raise ValueError(f'{len(mine)} robots of type {t} but {len(theirs)} goals of it: '
+                             'arrival needs one goal per robot')
+        cost = np.linalg.norm(mine[:, None, :] - theirs[None, :, :], axis=2)
+        worst = max(worst, bottleneck_value(cost))
+    return worst
+
+
+def arrived_now(points: np.ndarray, velocities: np.ndarray, types: np.ndarray, goals: list,
+                tol: float) -> bool:
+    """Every robot still (slower than eq. 5.4's settling speed) and within ``tol`` of a
+    distinct goal of its type (``arrival_error``)."""
+    from swarm_sim.metrics import SETTLE_SPEED
+
+    if not np.all(np.hypot(velocities[:, 0], velocities[:, 1]) < SETTLE_SPEED):
+        return False     # the cheap test first: while the robots drive it ends here
+    return arrival_error(points, types, goals) <= tol
+
+
+def arrival_from_record(times: np.ndarray, positions: np.ndarray, velocities: np.ndarray,
+                        types: np.ndarray, goals: list, tol: float, hold_s: float,
+                        since: float | None = None) -> dict:
+    """``arrived_now`` replayed over a record (T samples, N robots) with eq. 5.4's hold
+    (``swarm_sim.metrics.SettleTracker``): ``arrived`` when it held for ``hold_s`` to the
+    end of the record, ``arrival_time`` when that streak began (from ``times[0]``; None
+    unless arrived). ``since``: replay only the samples from that time on (the live
+    check needs the last hold window, not the whole record)."""
+    from swarm_sim.metrics import SettleTracker
+
+    first = 0 if since is None else max(0, int(np.searchsorted(times, since)) - 1)
+    tracker = SettleTracker(hold_s, t_start=float(times[0]))
+    for k in range(first, len(times)):
+        tracker.update(float(times[k]), arrived_now(positions[k], velocities[k], types,
+                                                    goals, tol))
+    result = tracker.result()
+    return {'arrived': result['settled'], 'arrival_time': result['settling_time']}
+
+
+def record_arrived(tracks: list[list[tuple[float, float, float]]], t0: float, now: float,
+                   types: np.ndarray, goals: list, tol: float, hold_s: float) -> bool:
+    """The end of a run: arrival held for ``hold_s`` on the record so far, judged on the
+    grid and speeds ``analyse`` uses (so the run's metrics then give its arrival time);
+    False while a robot's track is empty or more than a second old."""
+    if any(not track or now - track[-1][0] > 1.0 for track in tracks):
+        return False
+    times, positions = resample(tracks, t0, now)
+    return arrival_from_record(times, positions, speeds(times, positions), types, goals,
+                               tol, hold_s, since=float(times[-1]) - hold_s)['arrived']
 
 
 def sim_calibration(params: dict, path: pathlib.Path) -> pathlib.Path:
@@ -199,16 +287,17 @@ def plot(path: pathlib.Path, name: str, shape, positions: np.ndarray, goals: lis
 def table(results: list[dict]) -> str:
     """The per-shape comparison with thesis Tables 5.2-5.6."""
     lines = ['shape          table  displacement [m]  (thesis, bound)   settling [s] (thesis)'
-             '  outcome']
+             '  arrival [s]  outcome']
     for m in results:
         name = m['shape']
         disp, settle = THESIS[name]
         got_d = m.get('total_displacement', math.nan)
-        got_s = m.get('settling_time')
         bound = m.get('displacement_lower_bound', math.nan)
-        s_text = f'{got_s:6.1f}' if got_s is not None else '     -'
+        s_text, a_text = (f'{t:6.1f}' if t is not None else '     -'
+                          for t in (m.get('settling_time'), m.get('arrival_time')))
         lines.append(f'{name:14s} {THESIS_TABLE[name]:5s}  {got_d:6.2f}       ({disp:.2f}, '
-                     f'{bound:.2f})      {s_text}      ({settle:.0f})     {m["outcome"]}')
+                     f'{bound:.2f})      {s_text}      ({settle:.0f})      {a_text}     '
+                     f'{m["outcome"]}')
     return '\n'.join(lines)
 
 

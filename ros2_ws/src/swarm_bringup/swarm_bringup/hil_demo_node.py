@@ -24,12 +24,14 @@ a video file runs the real robots: no emulator, ``bridge_node`` on ``--port``, t
 on the camera with ``--calibration`` (written by ``camera_calibrate``). Metrics use the
 boards' true poses (/truth/agent_K/pose) when emulated, the tracker's otherwise.
 
-Per shape the run starts when the mission node announces the shape (t = 0) and ends once
-every robot has stayed inside the shape and slower than 0.01 m/s (eq. 5.4) for
-``--settle-hold`` seconds, or after ``--duration`` seconds. Reported next to thesis
-Tables 5.2-5.6: total displacement (summed camera-track lengths), settling time (eq.
-5.4), the displacement lower bound (optimal assignment of straight paths to the goals)
-and the final distance of each robot to its goal. Writes DIR/hil.json, DIR/<shape>.png
+Per shape the run starts when the mission node announces the shape (t = 0) and ends when
+the formation is reached: every robot within ``--arrive-tolerance`` of a distinct goal of
+its type (the goals the agents partition the announced shape into) and slower than 0.01
+m/s, held for ``--settle-hold`` seconds together with eq. 5.4 (every robot inside the
+shape and that slow); or after ``--duration`` seconds. Reported next to thesis Tables
+5.2-5.6: total displacement (summed camera-track lengths), settling time (eq. 5.4),
+arrival time, the displacement lower bound (optimal assignment of straight paths to the
+goals) and the final distance of each robot to its goal. Writes DIR/hil.json, DIR/<shape>.png
 (traces as Figs. 5.11-5.20) and DIR/<shape>/logs/*.log. Children run in an isolated ROS
 domain on localhost and are all stopped at the end (swarm_bringup.launcher.Children).
 """
@@ -50,6 +52,7 @@ import numpy as np
 
 from swarm_bringup.hil import (
     analyse,
+    arrival_tolerance,
     bridge_config,
     bridge_node,
     camera_tracker_node,
@@ -59,6 +62,7 @@ from swarm_bringup.hil import (
     hw_agent_nodes,
     parse_args,
     plot,
+    record_arrived,
     record_settled,
     resample,
     SHAPES,
@@ -169,6 +173,9 @@ def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: in
     counts = counts_of(robots)
     type_counts = type_counts_text(counts)
     goals = partition(shape, counts, radii, 'bubble', seed=0).goals  # what agents compute
+    robot_types = np.array([r.type for r in robots])
+    arrive_tol = (arrival_tolerance() if args.arrive_tolerance is None
+                  else args.arrive_tolerance)
     run_dir = out / name
     (run_dir / 'logs').mkdir(parents=True, exist_ok=True)
     link = run_dir / 'coordinator.pty'
@@ -214,14 +221,16 @@ def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: in
                 break
             now = time.monotonic()
             tracks, _, _ = monitor.snapshot()
-            judged = record_settled([tracks[k] for k in ids], t_start, now, shape,
-                                    args.settle_hold)
-            if judged is not None and judged['settled']:
-                outcome, t_end = 'settled', now
-                break
+            record = [tracks[k] for k in ids]
+            if record_arrived(record, t_start, now, robot_types, goals, arrive_tol,
+                              args.settle_hold):
+                judged = record_settled(record, t_start, now, shape, args.settle_hold)
+                if judged is not None and judged['settled']:
+                    outcome, t_end = 'arrived', now
+                    break
             if now - last_print >= 5.0:
                 last_print = now
-                print(f'  t={now - t_start:5.1f} s  not settled and held yet', flush=True)
+                print(f'  t={now - t_start:5.1f} s  not arrived and held yet', flush=True)
             if now - t_start >= args.duration:
                 break
     except (RuntimeError, KeyboardInterrupt) as exc:
@@ -240,8 +249,8 @@ def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: in
     if t_start is None or not all(tracks.values()):
         return {'shape': name, 'outcome': outcome}
     times, positions = resample([tracks[k] for k in ids], t_start, t_end)
-    robot_types = np.array([r.type for r in robots])
-    metrics = analyse(times, positions, shape, robot_types, goals, radii, args.settle_hold)
+    metrics = analyse(times, positions, shape, robot_types, goals, radii, args.settle_hold,
+                      arrive_tol)
     metrics.update(
         shape=name, outcome=outcome, camera=args.camera, thesis_table=THESIS_TABLE[name],
         thesis_total_displacement=THESIS[name][0], thesis_settling_time=THESIS[name][1],
@@ -294,4 +303,4 @@ def main(argv: list[str] | None = None) -> int:
              'results': results}, indent=2, default=float))
     print(table(results))
     print(f'hil_demo: results in {out / "hil.json"}')
-    return 0 if all(m['outcome'] == 'settled' for m in results) else 1
+    return 0 if all(m['outcome'] == 'arrived' for m in results) else 1
