@@ -63,7 +63,7 @@ from swarm_agent.mesh_messages import (
     NeighbourInfo,
 )
 from swarm_agent.packet import Kind, Packet
-from swarm_agent.setpoint import avoid_collisions, velocity_setpoint
+from swarm_agent.setpoint import avoid_collisions, tracking_lag_s, velocity_setpoint
 from swarm_common.goals import Goal
 from swarm_common.robot_types import RobotType
 from swarm_common.shapes import Shape
@@ -277,9 +277,13 @@ class AgentBrain:
         if self._avoid_due:
             self._avoid_due = False
             offsets, radii = self._neighbour_offsets(t)
-            self._command = avoid_collisions(self._setpoint, offsets, radii,
-                                             self.robot.coverage_radius, self.config.setpoint,
-                                             parked=self._parked)
+            # A parked robot applies no force and stands (static friction): its own
+            # closing speed is zero, not its velocity estimate's noise.
+            self._command = avoid_collisions(
+                self._setpoint, offsets, radii, self.robot.coverage_radius,
+                self.config.setpoint, parked=self._parked,
+                own_velocity=None if self._parked else self.localizer.velocity,
+                lag_s=tracking_lag_s(self.robot.fluid_friction, self.loop.gains))
             self._commanded = bool(self._command[0] or self._command[1])
         commanded = self._commanded
         if self._yielding and not commanded:

@@ -16,6 +16,35 @@ parked robot (setpoint zero) therefore yields to one that comes too close. Ahead
 the filter, part of the speed towards a close neighbour is turned to the right
 (``swerve``): two robots meeting head-on, or a robot behind a parked one, would
 otherwise stop in front of each other for good.
+
+That guarantee holds for the velocity commanded, but a robot has mass: the LQR loop
+(eqs. 3.108-3.110) follows a changing command about tau = (b + K_v) / K_e behind
+(``tracking_lag_s``: 0.57-0.71 s for Table 4.1's types). Modelled as that lag, a pair
+closing symmetrically at v each (dh/dt = -2 v) under the plain bound obeys tau h'' + h'
++ rate h = 0, which overshoots h = 0 whenever 4 tau rate > 1 (2.8 for type 3 at 1/s):
+two robots meeting at 0.5 m/s each cross 0.3 m into the buffer. The filter therefore
+bounds the gap the robot will have one lag later, h + tau dh/dt, with dh/dt taken as
+twice its own measured closing speed u_j . v_i (the neighbour assumed to close as
+fast; when it does not, the bound is only stricter):
+
+    u_j . v <= (rate / 2) h_j - rate tau (u_j . v_i).
+
+With the lag model this gives tau h'' + (1 + rate tau) h' + rate h = 0, roots -1/tau and
+-rate: never oscillatory, and a pair entering the constraint at its edge approaches
+as exp(-rate t), as the plain bound promises a kinematic robot. (A parked neighbour:
+tau h'' + (1 + rate tau) h' + rate h / 2 = 0, also real roots.)
+
+What the lag model leaves out is what ``avoid_buffer`` (0.3 m) is for, each term at
+the thesis scenario's rates: the proximity scan's offset noise (2 cm per axis,
+``swarm_sim.sensors``); the command held between scans (0.1 s, a further delay of 0.05 s
+on average, 5 cm at the pair's 1 m/s closing speed, 10 cm at worst); the robot's own
+velocity estimate (its error e_v, about 0.05 m/s, moves where a pair stops by 2 tau e_v,
+7 cm); and the second-order loop and the turning line of centres as robots pass, which
+the lag model ignores (4 cm into the buffer when eight robots of mixed types swap
+places across a ring, test_collision_dynamics; 7 cm without the scan noise). Together
+about 26 cm of the 30. Offsets from the
+neighbours' broadcast estimates (no fresh scan) carry both robots' localization errors,
+0.5 m and more, which this budget does not cover.
 """
 
 from __future__ import annotations
@@ -24,6 +53,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from swarm_agent.lqr import LqrGains
 from swarm_common.parameters import tunable
 
 
@@ -65,6 +95,18 @@ def _saturate(v: np.ndarray, v_max: float) -> np.ndarray:
     return v * (v_max / speed) if speed > v_max else v
 
 
+def tracking_lag_s(fluid_friction: float, gains: LqrGains) -> float:
+    """How far in time (s) the robot's velocity trails a steadily changing setpoint.
+
+    The closed velocity loop of eqs. 3.108-3.110, m dv/dt = -b v - K_v v - K_e e with
+    e the integral of v - v_ref, has the transfer function K_e / (m s^2 + (b + K_v) s +
+    K_e) from v_ref to v; its velocity-error constant gives the steady lag behind a ramp
+    of the setpoint, (b + K_v) / K_e. With Table 4.1 and eq. 3.111's weights this is
+    0.57 s (type 1), 0.61 s (type 2) and 0.71 s (type 3).
+    """
+    return (fluid_friction + gains.k_v) / gains.k_e
+
+
 def velocity_setpoint(position, goal, params: SetpointParams, *,
                       waypoints=None) -> np.ndarray:
     """The 2-D velocity setpoint towards the goal in m/s (map frame), before avoidance."""
@@ -85,12 +127,15 @@ def velocity_setpoint(position, goal, params: SetpointParams, *,
 
 
 def avoid_collisions(velocity, offsets, radii, own_radius: float,
-                     params: SetpointParams, *, parked: bool = False) -> np.ndarray:
+                     params: SetpointParams, *, parked: bool = False,
+                     own_velocity=None, lag_s: float = 0.0) -> np.ndarray:
     """``velocity`` (m/s) made safe with respect to neighbours at ``offsets`` (k, 2:
     neighbour centre minus own centre, m) of coverage ``radii`` (k,); see the module
-    docstring. A ``parked`` robot keeps ``yield_margin`` more. Returns the closest
-    velocity to the swerved one that satisfies every neighbour's constraint, saturated
-    at ``v_max``."""
+    docstring. A ``parked`` robot keeps ``yield_margin`` more. ``own_velocity`` (m/s,
+    the robot's measured velocity) and ``lag_s`` (s, ``tracking_lag_s``) aim the
+    constraint at the gap ``lag_s`` ahead, where the robot's velocity loop will have
+    brought it. Returns the closest velocity to the swerved one that satisfies every
+    neighbour's constraint, saturated at ``v_max``."""
     v = np.asarray(velocity, dtype=float).copy()
     offsets = np.asarray(offsets, dtype=float).reshape(-1, 2)
     if not len(offsets):
@@ -99,6 +144,11 @@ def avoid_collisions(velocity, offsets, radii, own_radius: float,
     buffer = params.avoid_buffer + (params.yield_margin if parked else 0.0)
     gap = d - (own_radius + np.asarray(radii, dtype=float) + buffer)
     bound = 0.5 * params.avoid_rate * gap
+    if own_velocity is not None and lag_s > 0.0:
+        # Own closing speed u_j . v_i, doubled for the pair: dh/dt = -2 u_j . v_i when
+        # the neighbour closes as fast (an overestimate, so safe, when it does not).
+        closing = (offsets @ np.asarray(own_velocity, dtype=float)) / np.maximum(d, 1e-9)
+        bound = bound - params.avoid_rate * lag_s * closing
     # Only neighbours whose bound can bind at v_max matter (and none on top of us:
     # no direction to keep).
     near = (bound < params.v_max) & (d > 1e-9)
