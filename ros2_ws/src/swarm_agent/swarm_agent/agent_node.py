@@ -457,14 +457,16 @@ class AgentNode(Node):
         if not self._stepped:
             self._stepped = True
             self._late_start(t)
-        out = self.brain.step(t)
-        if out.packets:
+        # A parked agent with nothing due skips the step (AgentBrain.rest): its force
+        # stays zero, no frame goes out and its setpoint is unchanged.
+        out = None if self.brain.rest(t) else self.brain.step(t)
+        if out is not None and out.packets:
             self._tx_sink([(t, packet) for packet in out.packets])
         if self._radio is not None:
             self._radio.flush_if_due(now)
         # An unchanged force (a parked robot: zero) is repeated at keepalive_hz only: the
         # simulator holds the last command and paces its clock to the stamps it gets.
-        force = (float(out.force[0]), float(out.force[1]))
+        force = (0.0, 0.0) if out is None else (float(out.force[0]), float(out.force[1]))
         # (Half a microsecond of slack: sim times are sums of float steps, and a keepalive
         # due at exactly one period must not wait for the next, the world may be holding
         # its clock for it.)
@@ -478,6 +480,8 @@ class AgentNode(Node):
                 wrench.header.frame_id = 'map'
                 wrench.wrench.force.x, wrench.wrench.force.y = force
                 self._cmd_force.publish(wrench)
+        if out is None:
+            return
         # The setpoint changes at the outer-loop rate only, its body-frame form also when
         # the heading changes (hardware): publish it when it changes.
         twist = setpoint_to_twist(out.velocity_setpoint, self.heading)
