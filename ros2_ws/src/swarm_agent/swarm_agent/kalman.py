@@ -13,9 +13,22 @@ the dead-reckoned position by 0.5 b t^2 = 44 m, the covariance still shrinks wit
 fix, and the filter ends up ignoring (or gating) the fixes that would correct it. With
 the bias in the state the fixes estimate it. ``estimate_bias=False`` gives the thesis's
 four-state filter.
+
+Beyond the thesis, the anchors' position errors are *consider* parameters (the
+Schmidt-Kalman filter; Tapley, Schutz and Born, Statistical Orbit Determination, 2004,
+ch. 6): a range to an anchor whose advertised position is off by beta is off by
+-u . beta (u the unit vector from the anchor to the agent), and beta persists from one
+tick to the next. The filter keeps the covariance ``cross`` of its state error with the
+beta of every anchor it has ranged to, propagates it (beta first-order Gauss-Markov with
+time constant ``consider_time_s``: C <- exp(-dt / tau) F C) and updates it, but never
+estimates beta itself. A second range to the same anchor then no longer counts its error
+as new: the state already carries it.
 """
 
 from __future__ import annotations
+
+from collections.abc import Hashable, Sequence
+import math
 
 import numpy as np
 
@@ -26,7 +39,7 @@ class KalmanFilter:
     def __init__(self, position, velocity=(0.0, 0.0), position_std: float = 1.0,
                  velocity_std: float = 0.1, accel_noise_std: float = 0.01,
                  accel_bias_std: float = 0.001, estimate_bias: bool = True,
-                 bias_walk_std: float = 1e-5) -> None:
+                 bias_walk_std: float = 1e-5, consider_time_s: float = math.inf) -> None:
         self.estimate_bias = estimate_bias
         n = 6 if estimate_bias else 4
         self.x = np.zeros(n)
@@ -44,6 +57,9 @@ class KalmanFilter:
         self._h = np.zeros((2, n))
         self._h[0, 0] = self._h[1, 1] = 1.0
         self._dt: float | None = None  # the IMU period is fixed: F and Q built once per dt
+        self.consider_time_s = consider_time_s
+        self.consider_keys: list[Hashable] = []      # two consider parameters each
+        self.cross = np.zeros((n, 0))                # cov(truth - x, beta), (n, 2 keys)
 
     def _model(self, dt: float) -> None:
         n = len(self.x)
@@ -58,6 +74,8 @@ class KalmanFilter:
             f[:4, 4:6] = -g[:4]           # the bias is subtracted from the input
             q[4:6, 4:6] = self.bias_walk * dt * i2
         self._f, self._g, self._q, self._dt = f, g, q, dt
+        tau = self.consider_time_s
+        self._decay = math.exp(-dt / tau) if tau > 0 else 0.0
 
     @property
     def bias(self) -> np.ndarray:
@@ -73,6 +91,8 @@ class KalmanFilter:
         f = self._f
         self.x = f @ self.x + self._g @ np.asarray(accel, float)
         self.P = f @ self.P @ f.T + self._q
+        if self.cross.size:
+            self.cross = (f @ self.cross) * self._decay
 
     def innovation_distance(self, z, R) -> float:
         """Squared Mahalanobis distance of a position fix from the prediction.
@@ -93,6 +113,7 @@ class KalmanFilter:
         self.x = self.x + k @ (np.atleast_1d(np.asarray(z, float)) - h @ self.x)
         ikh = np.eye(len(self.x)) - k @ h
         self.P = ikh @ self.P @ ikh.T + k @ r @ k.T
+        self.cross = ikh @ self.cross   # z does not depend on the consider parameters
 
     def update_position(self, z, R) -> None:
         """Measurement update with a position fix z (2,) of covariance R."""
@@ -119,47 +140,130 @@ class KalmanFilter:
         h[:, :2] = d / ranges[:, None]
         return ranges, h
 
-    def range_nis(self, beacons, ranges, variances, offset=(0.0, 0.0)) -> float:
+    def range_nis(self, beacons, ranges, variances, offset=(0.0, 0.0),
+                  consider: Consider | None = None) -> float:
         """Normalised innovation squared of a set of ranges at the prediction
-        (``variances``: one per range, or their covariance matrix when they share errors).
+        (``variances``: one per range, or their covariance matrix when they share errors;
+        ``consider``: the anchors' persistent errors, ``update_ranges``).
 
         Chi-square with len(ranges) degrees of freedom when the filter, the beacons'
         positions and the ranges are consistent (and the linearisation holds).
         """
         predicted, h = self.range_model(self.x, np.asarray(beacons, float), offset)
-        s = h @ self.P @ h.T + _noise(variances)
+        c0, b = self._consider_prior(consider)
+        hb = _consider_jacobian(h, consider, b)
+        s = h @ self.P @ h.T + _noise(variances) + hb @ b @ hb.T \
+            + h @ c0 @ hb.T + hb @ c0.T @ h.T
         y = np.asarray(ranges, float) - predicted
         return float(y @ np.linalg.solve(s, y))
 
     def update_ranges(self, beacons, ranges, variances, offset=(0.0, 0.0),
-                      iterations: int = 5) -> None:
+                      iterations: int = 5, consider: Consider | None = None) -> None:
         """Iterated extended Kalman update with TOA ranges (Gauss-Newton on the prior
         and the ranges, the maximum a posteriori estimate; Joseph form at the end).
-        ``variances``: one per range, or their covariance matrix.
+        ``variances``: one per range, or their covariance matrix (the white part of the
+        errors when ``consider`` is given).
 
         The linearisation is taken at the current iterate, not at the prediction, so
         the curvature of the range circles costs nothing once the iteration converges.
+
+        ``consider`` = (keys, slot, B): range k is to anchor ``keys[slot[k]]`` (slot -1:
+        no consider parameter), whose position errors have covariance B (2q x 2q). The
+        Schmidt-Kalman update: with H_b the ranges' dependence on the anchors' errors
+        (-u_k^T in anchor k's slot) and C the state's covariance with them,
+        S = H P H^T + H C H_b^T + H_b C^T H^T + H_b B H_b^T + R, K = (P H^T + C H_b^T)
+        S^-1, C <- C - K (H C + H_b B); the anchors' errors are not estimated.
         """
         beacons = np.asarray(beacons, float)
         z = np.asarray(ranges, float)
         r = _noise(variances)
         x0, p0 = self.x.copy(), self.P
+        cols = self._columns(consider[0]) if consider is not None else np.zeros(0, int)
+        c0, b = self._consider_prior(consider)
+        self.cross[:, cols] = c0
         x = x0
         for _ in range(iterations):
             predicted, h = self.range_model(x, beacons, offset)
-            k = p0 @ h.T @ np.linalg.inv(h @ p0 @ h.T + r)
+            hb = _consider_jacobian(h, consider, b)
+            pht = p0 @ h.T + c0 @ hb.T
+            s = h @ pht + hb @ (c0.T @ h.T + b @ hb.T) + r
+            k = pht @ np.linalg.inv(s)
             step = x0 + k @ (z - predicted - h @ (x0 - x))
             converged = float(np.hypot(*(step[:2] - x[:2]))) < 1e-4
             x = step
             if converged:
                 break
         ikh = np.eye(len(x)) - k @ h
+        mixed = ikh @ c0 @ hb.T @ k.T
         self.x = x
-        self.P = ikh @ p0 @ ikh.T + k @ r @ k.T
+        p = ikh @ p0 @ ikh.T - mixed - mixed.T + k @ (hb @ b @ hb.T + r) @ k.T
+        self.P = 0.5 * (p + p.T)
+        self.cross = ikh @ self.cross
+        if len(cols):
+            self.cross[:, cols] -= k @ hb @ b
+
+    def _columns(self, keys: Sequence[Hashable]) -> np.ndarray:
+        """The columns of ``cross`` of ``keys`` (two each), new keys added with none."""
+        new = [key for key in dict.fromkeys(keys) if key not in self.consider_keys]
+        if new:
+            self.consider_keys.extend(new)
+            self.cross = np.hstack([self.cross, np.zeros((len(self.x), 2 * len(new)))])
+        index = {key: j for j, key in enumerate(self.consider_keys)}
+        return np.array([2 * index[key] + a for key in keys for a in (0, 1)], dtype=int)
+
+    def _consider_prior(self, consider: Consider | None) -> tuple[np.ndarray, np.ndarray]:
+        """(C, B) of ``update_ranges``: the state's covariance with the anchors' errors
+        (zero for anchors not held yet) and theirs. The joint covariance [[P, C], [C^T,
+        B]] must be positive semi-definite, i.e. P - C B^-1 C^T too; an anchor's
+        advertised error shrinks between two ranges to it (it was localized again), so
+        C is scaled down, all its correlations alike, until that holds."""
+        if consider is None:
+            return np.zeros((len(self.x), 0)), np.zeros((0, 0))
+        keys, _, b = consider
+        b = np.asarray(b, float)
+        index = {key: j for j, key in enumerate(self.consider_keys)}
+        c0 = np.zeros((len(self.x), 2 * len(keys)))
+        for j, key in enumerate(keys):
+            if key in index:
+                c0[:, 2 * j:2 * j + 2] = self.cross[:, 2 * index[key]:2 * index[key] + 2]
+        if not np.any(c0):
+            return c0, b
+        vals, vecs = np.linalg.eigh(self.P)
+        w = (vecs / np.sqrt(np.maximum(vals, 1e-18))).T @ c0      # P^-1/2 C
+        top = float(np.linalg.eigvalsh(w @ np.linalg.solve(b, w.T))[-1])
+        if top > CORRELATION_LIMIT:
+            c0 *= math.sqrt(CORRELATION_LIMIT / top)
+        return c0, b
+
+    def forget_consider(self, keep: Sequence[Hashable] = ()) -> None:
+        """Drop the consider parameters not in ``keep`` (anchors long out of use, or all
+        of them when the state is set anew)."""
+        keep = set(keep)
+        held = [j for j, key in enumerate(self.consider_keys) if key in keep]
+        self.cross = self.cross[:, [2 * j + a for j in held for a in (0, 1)]]
+        self.consider_keys = [self.consider_keys[j] for j in held]
 
     def update_velocity(self, z, R) -> None:
         """Measurement update with a velocity z (2,) of covariance R (H = [0 I 0])."""
         self.update(np.roll(self._h, 2, axis=1), z, R)
+
+
+# (anchor keys, each range's index into them or -1, the anchors' error covariance)
+Consider = tuple[Sequence[Hashable], Sequence[int], np.ndarray]
+# The largest eigenvalue of P^-1/2 C B^-1 C^T P^-1/2 kept: the anchors' errors can
+# explain at most this share of the state's error in any direction.
+CORRELATION_LIMIT = 0.99
+
+
+def _consider_jacobian(h: np.ndarray, consider: Consider | None, b: np.ndarray) -> np.ndarray:
+    """H_b: range k depends on its anchor's error beta by -u_k . beta (``h``'s position
+    columns are u_k^T); zero rows for ranges without a consider parameter."""
+    hb = np.zeros((len(h), len(b)))
+    if consider is not None:
+        for row, j in enumerate(consider[1]):
+            if j >= 0:
+                hb[row, 2 * j:2 * j + 2] = -h[row, :2]
+    return hb
 
 
 def _noise(variances) -> np.ndarray:

@@ -52,16 +52,22 @@ from typing import Any
 import numpy as np
 from scipy.special import chdtri
 
+from swarm_agent.anchors import (
+    Anchor,
+    AnchorRange,
+    consider_terms,
+    fix_covariance,
+    range_covariance,
+    ranges_only,
+    Row,
+    usable_rows,
+)
 from swarm_agent.kalman import KalmanFilter
 from swarm_agent.trilateration import DegenerateGeometryError, trilaterate
 from swarm_common.parameters import tunable
 
 LOG = logging.getLogger(__name__)
 MG = 9.80665e-3  # m/s^2 per milli-g
-# position (m), range (m), range std (m) and, for a secondary anchor, the part of that
-# std which is its own position error (m), which anchors share (module docstring)
-Anchor = tuple[np.ndarray, float, float] | tuple[np.ndarray, float, float, float]
-Row = tuple[np.ndarray, float, float, float]
 GATE_1DOF = 10.83  # chi-square (1 dof, 99.9 %)
 # A range's Jacobian is the unit vector to its beacon, known within about one deviation
 # of the prior over the range (radians): a range update needs it within 0.25 rad.
@@ -135,6 +141,11 @@ class LocalizationConfig:
     anchors_while_moving: bool = tunable(
         True, 'A moving agent ranges to secondary anchors even with enough beacons',
         live=True)
+    # An anchor's error persists over 20-40 s (module docstring): it is a consider
+    # parameter of the filter, first-order Gauss-Markov with this time constant.
+    anchor_error_time_s: float = tunable(
+        30.0, "Time constant of an anchor's persistent position error, s (0: white)",
+        low=0.0, high=1000.0)
 
 
 def _chi2_999(dof: int) -> float:
@@ -142,68 +153,19 @@ def _chi2_999(dof: int) -> float:
     return float(chdtri(dof, 0.001))
 
 
-def _usable(anchors: Sequence[Anchor], shared: bool = False) -> list[Row]:
-    """(position, range, std, shared std) of the anchors whose numbers are finite, std
-    positive; the shared std is the anchor's position error for secondary anchors
-    (``shared``), 0 for beacons, whose GPS errors are their own."""
-    rows = []
-    for p, r, s, *own in anchors:
-        c = min(float(own[0]), float(s)) if shared and own else 0.0
-        if np.all(np.isfinite(p)) and np.isfinite(r) and np.isfinite(s) and s > 0 \
-                and np.isfinite(c):
-            rows.append((np.asarray(p, float), float(r), float(s), max(c, 0.0)))
-    return rows
-
-
-def range_covariance(rows: Sequence[Row], at) -> np.ndarray:
-    """Covariance of the rows' range errors seen from ``at`` (m^2).
-
-    A beacon's range error is its own (range noise and its GPS-fed estimate). Secondary
-    anchors localized from the same few beacons share those beacons' errors: a common
-    displacement d of every anchor, which changes the range to anchor k by u_k . d (u_k
-    the unit vector from the agent to it). Any error they all share is at most the
-    smallest one's, so d is taken with that variance, c^2 = min_k c_k^2, on every axis:
-    R = diag(s_k^2 - c^2 [k anchor]) + c^2 U U^T over the anchors, each range's own
-    variance s_k^2 unchanged. Averaging more anchors then cannot bring the fix below
-    c across any axis, as their common error does not average out.
-    """
-    variances = np.array([u[2] ** 2 for u in rows])
-    shared = [k for k, u in enumerate(rows) if u[3] > 0.0]
-    cov = np.diag(variances)
-    if len(shared) < 2:
-        return cov
-    c2 = min(rows[k][3] for k in shared) ** 2
-    d = np.array([rows[k][0] for k in shared]) - np.asarray(at, float)
-    unit = d / np.maximum(np.linalg.norm(d, axis=1), 1e-9)[:, None]
-    block = np.ix_(shared, shared)
-    cov[block] += c2 * (unit @ unit.T - np.eye(len(shared)))
-    return cov
-
-
-def _fix_covariance(fix, rows: Sequence[Row]) -> np.ndarray:
-    """Covariance of a fix weighed by the rows' own deviations when their errors are
-    ``range_covariance``: the sandwich A J^T W R W J A, A = (J^T W J)^-1, W = diag(1 /
-    s_k^2) (equal to A when the errors are independent)."""
-    pos = np.array([u[0] for u in rows])
-    d = fix.position - pos
-    jac = d / np.maximum(np.linalg.norm(d, axis=1), 1e-9)[:, None]
-    wj = jac / np.array([u[2] ** 2 for u in rows])[:, None]
-    a = fix.covariance
-    return a @ wj.T @ range_covariance(rows, fix.position) @ wj @ a
-
-
 def anchor_ranges(ranges: Sequence[tuple[int, float, float]], neighbours: Mapping[int, Any],
                   ranges_at: float, inflation: float, use_anchors: bool
                   ) -> tuple[list[Anchor], list[Anchor]]:
-    """(beacons, secondary anchors) of a tick: (position, range, std) for each range
-    (id, metres, std) to a neighbour heard (``neighbours``: id -> its last heartbeat's
-    ``info`` and ``heard_at``) that is a localized beacon, or, with ``use_anchors``, an
-    agent advertising itself as a secondary anchor.
+    """(beacons, secondary anchors) of a tick: an ``AnchorRange`` (position, range, std;
+    the anchor's own std and id) for each range (id, metres, std) to a neighbour heard
+    (``neighbours``: id -> its last heartbeat's ``info`` and ``heard_at``) that is a
+    localized beacon, or, with ``use_anchors``, an agent advertising itself as a
+    secondary anchor.
 
     Where the anchor was when the range was measured: its last heartbeat extrapolated
     with its own velocity estimate. Its own position uncertainty, inflated by
-    ``inflation`` (``beacon_variance_inflation``: the error persists), adds to the range
-    noise; a secondary anchor's tuple ends with that part of its std.
+    ``inflation`` (``beacon_variance_inflation``), adds to the range noise; the own std
+    is that part of the range's std, the anchor's error (``swarm_agent.anchors``).
     """
     beacons: list[Anchor] = []
     anchors: list[Anchor] = []
@@ -222,22 +184,8 @@ def anchor_ranges(ranges: Sequence[tuple[int, float, float]], neighbours: Mappin
         where = np.asarray(info.position) + (ranges_at - heard.heard_at) * np.asarray(
             info.velocity)
         own = info.position_std * scale
-        # A beacon's error is its own GPS's; anchors carry theirs, which they share.
-        row = (where, rng_m, math.hypot(std, own))
-        into.append(row if into is beacons else (*row, own))
+        into.append(AnchorRange(where, rng_m, math.hypot(std, own), own, anchor_id))
     return beacons, anchors
-
-
-def _ranges_only(rows: Sequence[Row], fallback):
-    """The fix from the ranges alone (eqs. 3.8-3.17 and Gauss-Newton, no prior), its
-    covariance with the anchors' shared error (``range_covariance``)."""
-    try:
-        free = trilaterate(np.array([u[0] for u in rows]), np.array([u[1] for u in rows]),
-                           range_std=np.array([u[2] for u in rows]))
-        free = replace(free, covariance=_fix_covariance(free, rows))
-    except (DegenerateGeometryError, ValueError, np.linalg.LinAlgError):
-        return fallback
-    return free if np.all(np.isfinite(free.covariance)) else fallback
 
 
 class Localizer:
@@ -250,7 +198,8 @@ class Localizer:
                                position_std=config.initial_position_std,
                                velocity_std=config.initial_velocity_std,
                                accel_noise_std=config.accel_noise_std,
-                               accel_bias_std=config.accel_bias_max)
+                               accel_bias_std=config.accel_bias_max,
+                               consider_time_s=config.anchor_error_time_s)
         self.mode = Mode.NORMAL
         self.missed_localizations = 0
         self.home = np.asarray(home if home is not None else initial_position, float)
@@ -265,6 +214,8 @@ class Localizer:
         self._gated: list[tuple[np.ndarray, np.ndarray, float]] = []
         # A zero-velocity update since the last tick: the robot stands parked.
         self._standing = False
+        # When each anchor held as a consider parameter was last ranged to.
+        self._anchor_used: dict[Any, float] = {}
 
     @property
     def position(self) -> np.ndarray:
@@ -320,6 +271,7 @@ class Localizer:
         variances[2:4] = velocity_std ** 2
         variances[4:] = kf.P.diagonal()[4:]
         kf.P = np.diag(variances)
+        kf.forget_consider()
         self.mode = Mode.NORMAL
         self.missed_localizations = 0
 
@@ -347,6 +299,7 @@ class Localizer:
         p[:, :2] = 0.0
         p[0, 0] = p[1, 1] = position_std ** 2
         self.kf.P = p
+        self.kf.forget_consider()
         self.beacon_only = False
 
     def stand_still(self) -> None:
@@ -384,11 +337,11 @@ class Localizer:
         robot at 0.5 m/s moves a metre in two seconds.
         """
         shift = np.asarray(displacement, dtype=float)
-        usable = _usable(beacons)
+        usable = usable_rows(beacons)
         enough = len(usable) >= self.config.min_beacons
         moving = self.config.anchors_while_moving and not self._standing
         self._standing = False
-        extra = _usable(secondary, shared=True) if secondary and (moving or not enough) \
+        extra = usable_rows(secondary, shared=True) if secondary and (moving or not enough) \
             else []
         before = self._updates()
         mode = self._tick(t, usable + extra, shift)
@@ -410,16 +363,16 @@ class Localizer:
         tight = self._range_update(usable, shift) if usable else None
         enough = len(usable) >= self.config.min_beacons
         if enough:
-            pos = np.array([u[0] for u in usable])
-            rng = np.array([u[1] for u in usable])
-            std = np.array([u[2] for u in usable])
+            pos = np.array([u.position for u in usable])
+            rng = np.array([u.range for u in usable])
+            std = np.array([u.std for u in usable])
         if enough and tight is not None:
             if tight:
                 self._gated.clear()
                 self._localized()
                 return self.mode
             # Ranges inconsistent with the filter: judge them by a fix of their own.
-            free = _ranges_only(usable, None)
+            free = ranges_only(usable, None)
             if free is not None and free.residual <= self.config.max_residual:
                 self._gate(t, free.position + shift, free.covariance)
                 return self.mode
@@ -429,7 +382,7 @@ class Localizer:
         elif enough:
             try:
                 fix = trilaterate(pos, rng, initial=self.position - shift, range_std=std)
-                fix = replace(fix, covariance=_fix_covariance(fix, usable))
+                fix = replace(fix, covariance=fix_covariance(fix, usable))
             except (DegenerateGeometryError, ValueError, np.linalg.LinAlgError) as exc:
                 LOG.debug('trilateration rejected: %s', exc)
                 self.stats['rejected'] += 1
@@ -446,7 +399,7 @@ class Localizer:
                     # trilateration keeps the prior's side of a mirror ambiguity, and
                     # the prior is what may be wrong (a filter locked on the mirror
                     # image of the robot would only ever be confirmed).
-                    free = _ranges_only(usable, fix)
+                    free = ranges_only(usable, fix)
                     self._gate(t, free.position + shift, free.covariance)
                     return self.mode
                 else:
@@ -485,18 +438,36 @@ class Localizer:
         if not self.config.range_updates:
             return None
         variance = float(np.linalg.eigvalsh(self.kf.P[:2, :2])[-1])
-        linear = [u for u in usable if variance <= 2.0 * u[1] * u[2]
-                  and variance <= (BEARING_TOLERANCE * u[1]) ** 2]
+        linear = [u for u in usable if variance <= 2.0 * u.range * u.std
+                  and variance <= (BEARING_TOLERANCE * u.range) ** 2]
         if not linear or (len(usable) >= self.config.min_beacons and len(linear) < len(usable)):
             return None
-        beacons = np.array([u[0] for u in linear])
-        ranges = np.array([u[1] for u in linear])
-        cov = range_covariance(linear, self.position - shift)
-        if self.kf.range_nis(beacons, ranges, cov, shift) > _chi2_999(len(linear)):
+        beacons = np.array([u.position for u in linear])
+        ranges = np.array([u.range for u in linear])
+        at = self.position - shift
+        consider = None
+        if self.config.anchor_error_time_s > 0:
+            keys, slot, cov, b = consider_terms(linear, at)
+            consider = (keys, slot, b) if keys else None
+        else:
+            cov = range_covariance(linear, at)
+        if self.kf.range_nis(beacons, ranges, cov, shift, consider) > _chi2_999(len(linear)):
             return False
-        self.kf.update_ranges(beacons, ranges, cov, shift)
+        self.kf.update_ranges(beacons, ranges, cov, shift, consider=consider)
         self.stats['range_updates'] += 1
+        if consider is not None:
+            self._held(consider[0])
         return True
+
+    def _held(self, keys) -> None:
+        """The anchors just ranged to are held as consider parameters; those not ranged
+        to for three time constants (their errors 95 % decorrelated) are dropped."""
+        t = self._t if self._t is not None else 0.0
+        for key in keys:
+            self._anchor_used[key] = t
+        horizon = 3.0 * self.config.anchor_error_time_s
+        self._anchor_used = {k: ti for k, ti in self._anchor_used.items() if t - ti <= horizon}
+        self.kf.forget_consider(self._anchor_used)
 
     def _localized(self) -> None:
         """The filter took the tick's measurements. It is a localization (NORMAL) only
@@ -580,5 +551,6 @@ class Localizer:
         p = np.diag(variances)
         p[:2, :2] = cov
         kf.P = p
+        kf.forget_consider()
         self.stats['relocalizations'] += 1
         self._localized()
