@@ -51,6 +51,7 @@ def test_per_robot_plan_names_each_agent_after_its_robot():
         'swarm_agent', 'mission_radio_node', 'mission_radio')
     assert mission.parameters.get('liveness', 'radio') == 'radio'
     assert sim.parameters['sensor_batch'] is False   # per-robot sensor topics
+    assert 'max_agent_lag_s' not in sim.parameters    # per-robot keepalives: the default lag
     for robot, spec in zip(FLEET, agents):
         assert (spec.package, spec.executable, spec.module) == (
             'swarm_agent', 'agent_node', 'swarm_agent.agent_node')
@@ -77,6 +78,9 @@ def test_composed_plan_is_one_process_that_keeps_its_node_names():
     assert sim.parameters['sensor_batch'] is True and agents.parameters['sensor_batch'] is True
     assert agents.parameters['fleet_file'] == '/tmp/run/fleet.yaml'
     assert agents.parameters['control_rate_hz'] == 25.0
+    # The agents answer every step in the batch, so the world never runs more than one
+    # control period ahead of them: each tick is at most one period of their inner loop.
+    assert sim.parameters['max_agent_lag_s'] == 1.0 / 25.0
     assert 'agent_ids' not in agents.parameters    # the whole fleet
 
 

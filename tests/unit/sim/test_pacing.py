@@ -47,3 +47,21 @@ def test_the_hold_names_the_agent_waited_for():
     assert pacer.holder(ALIVE, 110.5) is None                        # not a second yet
     assert pacer.holder(ALIVE, 111.5) == 1
     assert 'stamped 0.40 s and came 1.5 s (wall) ago' in pacer.describe(1, 111.5)
+
+
+def test_with_a_lag_of_one_control_period_every_tick_is_one_period():
+    # Composed agents answer every 0.02 s step (launch plan: lag = 1 / control rate):
+    # the world steps 2 physics steps as soon as all have answered, never 10, so their
+    # 50 Hz inner loop holds each force for one period, as headless and on a robot.
+    pacer = _pacer(lag=0.02)
+    t = 0.0
+    for _ in range(5):
+        for i in range(3):
+            pacer.heard(i, t, 101.0)
+        assert pacer.all_answered(t, ALIVE, 101.0)
+        steps = pacer.steps_for_tick(t, ALIVE, 101.0)
+        assert steps == 2
+        t += steps * DT
+    pacer.heard(0, t, 101.0)             # two agents have not answered t yet
+    assert not pacer.all_answered(t, ALIVE, 101.0)
+    assert pacer.steps_for_tick(t, ALIVE, 101.0) == 0

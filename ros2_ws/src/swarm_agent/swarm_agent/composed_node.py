@@ -162,6 +162,10 @@ class ComposedAgents(Node):
                 Parameter('seed', value=int(p['seed']) + agent_id),
                 Parameter('method', value=p['method']),
                 Parameter('control_rate_hz', value=float(p['control_rate_hz'])),
+                # In the batch every agent answers every step (a list entry each): the
+                # world then holds each step until all have (strict lockstep).
+                *([Parameter('keepalive_hz', value=float(p['control_rate_hz']))]
+                  if p['sensor_batch'] else []),
                 Parameter('localization_period_s', value=float(p['localization_period_s'])),
                 Parameter('placement_std_m', value=float(p['placement_std_m'])),
                 Parameter('partition_locally', value=bool(p['partition_locally'])),

@@ -198,6 +198,10 @@ def world_nodes(run: SwarmRun) -> list[NodeSpec]:
            # Composed agents take every robot's imu, ranges and radio deliveries in one
            # message per step (swarm_msgs/SensorBatch).
            'sensor_batch': bool(run.composed),
+           # Composed agents answer every control step in one ForceBatch, so the world
+           # waits for them step by step: the 50 Hz inner loop runs as it does headless
+           # and on a robot, however loaded the machine (swarm_sim.pacing).
+           **({'max_agent_lag_s': 1.0 / run.control_rate_hz} if run.composed else {}),
            # The recorder is one more truth subscriber: the sim starts once it listens.
            'truth_subscribers': run.truth_subscribers + (1 if run.bag else 0)}
     mission = {'shape': run.shape, 'method': run.method, 'fleet_file': run.fleet_file,

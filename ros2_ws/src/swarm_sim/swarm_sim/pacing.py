@@ -15,8 +15,10 @@ import math
 import numpy as np
 
 # Running as fast as possible, the world advances by at most this many physics steps at
-# a time (0.1 s at 100 Hz): the agents' timers fire once per clock advance (rcl skips
-# missed periods), so this is the longest the agents' inner loop holds one force.
+# a time (0.1 s at 100 Hz), and by no more than ``max_agent_lag_s`` allows: the agents'
+# timers fire once per clock advance (rcl skips missed periods), so a tick is the
+# longest the agents' inner loop holds one force. A lag of one control period (what
+# the launch plan gives composed agents, which answer every step) keeps the 50 Hz loop.
 STEPS_PER_TICK = 10
 # Paced to real time, at most this many physics steps per tick (a late tick catches up).
 MAX_STEPS_PER_TICK = 50
