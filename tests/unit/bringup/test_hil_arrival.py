@@ -142,3 +142,24 @@ def test_a_lost_robot_has_not_arrived_and_goals_must_match_the_robots():
     assert not hil.record_arrived(tracks, 0.0, 52.0, TYPES, GOALS, 0.04, HOLD)
     with pytest.raises(ValueError, match='2 robots of type 2 but 1 goals of it'):
         hil.arrival_error(np.zeros((5, 2)), TYPES, GOALS[:2] + GOALS[3:])
+
+
+def test_mesh_delays_match_each_received_copy_to_its_transmission():
+    from swarm_agent.packet import Kind, Packet
+
+    row = Packet(source=1, destination=0xFFFF, kind=Kind.FLOOD, sequence=7, ttl=3,
+                 payload=b'cost row')
+    heartbeat = Packet(source=2, destination=0xFFFF, kind=Kind.HEARTBEAT, sequence=7, ttl=1,
+                       payload=b'')
+    mesh = hil.MeshDelays()
+    mesh.sent(10.0, [row, heartbeat])
+    mesh.sent(12.0, [row])                       # a retransmission keeps the first time
+    mesh.received(10.02, [heartbeat])            # two receivers, one late
+    mesh.received(10.05, [row])
+    mesh.received(13.5, [row])
+    # a frame never seen sent (its source's batch not heard) is not counted
+    mesh.received(14.0, [Packet(3, 0xFFFF, Kind.FLOOD, 7, 3, b'cost row')])
+    s = mesh.summary()
+    assert s['frames'] == 3 and s['over_1s'] == 1
+    assert s['median'] == pytest.approx(0.05) and s['max'] == pytest.approx(3.5)
+    assert hil.MeshDelays().summary() == {'frames': 0}

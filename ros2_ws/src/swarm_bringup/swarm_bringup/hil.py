@@ -240,6 +240,43 @@ def record_arrived(tracks: list[list[tuple[float, float, float]]], t0: float, no
                                tol, hold_s, since=float(times[-1]) - hold_s)['arrived']
 
 
+class MeshDelays:
+    """How long the agents' mesh frames take from one agent's radio to another's, per
+    hop: each frame seen on the agents' transmit topic (``sent``) matched by link source,
+    kind, sequence number and payload to its copies on the receivers' topics
+    (``received``). The agents' own radio lag starts at the medium's delivery stamp and
+    misses a medium that falls behind before delivering; this includes it."""
+
+    def __init__(self) -> None:
+        self._sent: dict[tuple, float] = {}
+        self.delays: list[float] = []
+
+    @staticmethod
+    def _key(packet) -> tuple:
+        return (packet.source, int(packet.kind), packet.sequence, bytes(packet.payload))
+
+    def sent(self, t: float, packets) -> None:
+        """Packets (swarm_agent.packet.Packet) transmitted at ``t`` (s)."""
+        for packet in packets:
+            self._sent.setdefault(self._key(packet), t)
+
+    def received(self, t: float, packets) -> None:
+        """Packets received at ``t``; a packet not seen sent is not counted."""
+        for packet in packets:
+            t0 = self._sent.get(self._key(packet))
+            if t0 is not None:
+                self.delays.append(t - t0)
+
+    def summary(self) -> dict:
+        """Frames matched, median, 95th percentile and maximum delay (s), frames over 1 s."""
+        if not self.delays:
+            return {'frames': 0}
+        d = np.asarray(self.delays)
+        return {'frames': len(d), 'median': float(np.median(d)),
+                'p95': float(np.percentile(d, 95)), 'max': float(d.max()),
+                'over_1s': int((d > 1.0).sum())}
+
+
 def sim_calibration(params: dict, path: pathlib.Path) -> pathlib.Path:
     """Calibrate the rendered camera of config/hil.yaml on its corner markers, as a user
     calibrates a real one (camera_calibrate), and write it to ``path``."""

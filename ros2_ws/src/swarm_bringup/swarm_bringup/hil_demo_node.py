@@ -31,7 +31,8 @@ m/s, held for ``--settle-hold`` seconds together with eq. 5.4 (every robot insid
 shape and that slow); or after ``--duration`` seconds. Reported next to thesis Tables
 5.2-5.6: total displacement (summed camera-track lengths), settling time (eq. 5.4),
 arrival time, the displacement lower bound (optimal assignment of straight paths to the
-goals) and the final distance of each robot to its goal. Writes DIR/hil.json, DIR/<shape>.png
+goals), the final distance of each robot to its goal and the mesh frames' delay from
+radio to radio (``MeshDelays``). Writes DIR/hil.json, DIR/<shape>.png
 (traces as Figs. 5.11-5.20) and DIR/<shape>/logs/*.log. Children run in an isolated ROS
 domain on localhost and are all stopped at the end (swarm_bringup.launcher.Children).
 """
@@ -60,6 +61,7 @@ from swarm_bringup.hil import (
     hil_mission_node,
     hil_world_node,
     hw_agent_nodes,
+    MeshDelays,
     parse_args,
     plot,
     record_arrived,
@@ -86,7 +88,7 @@ class Monitor:
         from rclpy.qos import QoSProfile
 
         from swarm_common import qos
-        from swarm_msgs.msg import AgentState, FormationShape
+        from swarm_msgs.msg import AgentState, FormationShape, RadioPacketArray
 
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
@@ -96,7 +98,12 @@ class Monitor:
         self.states: dict[int, object] = {}
         self.setpoints: dict[int, list[tuple[float, float, float]]] = {k: [] for k in ids}
         self.shape_time: float | None = None
+        self.mesh = MeshDelays()
+        self.node.create_subscription(RadioPacketArray, '/radio/tx', self._on_tx,
+                                      QoSProfile(**qos.RADIO))
         for k in ids:
+            self.node.create_subscription(RadioPacketArray, f'/agent_{k}/radio/rx',
+                                          self._on_rx, QoSProfile(**qos.RADIO))
             self.node.create_subscription(
                 PoseStamped, pose_topic.format(k=k), lambda m, k=k: self._on_pose(k, m),
                 QoSProfile(**qos.SENSOR))
@@ -116,6 +123,23 @@ class Monitor:
     def _on_pose(self, k: int, msg) -> None:
         with self.lock:
             self.tracks[k].append((time.monotonic(), msg.pose.position.x, msg.pose.position.y))
+
+    def _on_tx(self, msg) -> None:
+        self._on_frames(msg, self.mesh.sent)
+
+    def _on_rx(self, msg) -> None:
+        self._on_frames(msg, self.mesh.received)
+
+    def _on_frames(self, msg, record) -> None:
+        from swarm_agent.packet import PacketError, unpack_frames
+
+        t = time.monotonic()
+        try:
+            packets = [p for _, p in unpack_frames(msg.frames)]
+        except PacketError:
+            return          # the agents log a corrupt batch; here it is not measured
+        with self.lock:
+            record(t, packets)
 
     def _on_cmd(self, k: int, msg) -> None:
         with self.lock:
@@ -242,6 +266,7 @@ def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: in
         tracks, states, _ = monitor.snapshot()
         with monitor.lock:
             setpoints = {k: list(v) for k, v in monitor.setpoints.items()}
+            mesh_delay = monitor.mesh.summary()
         monitor.close()
         (run_dir / 'tracks.json').write_text(json.dumps(
             {'t_start': t_start, 'poses': tracks, 'cmd_vel': setpoints}))
@@ -258,7 +283,8 @@ def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: in
         final_positions=positions[-1].tolist(),
         goals=[{'id': g.id, 'type': g.type, 'x': g.x, 'y': g.y} for g in goals],
         assigned_goals={k: int(s.assigned_goal) for k, s in sorted(states.items())},
-        bridge_log_warnings=count_warnings(run_dir / 'logs' / 'bridge.log'))
+        bridge_log_warnings=count_warnings(run_dir / 'logs' / 'bridge.log'),
+        mesh_delay=mesh_delay)
     if not args.no_plot:
         plot(out / f'{name}.png', name, shape, positions, goals, robots)
     return metrics
