@@ -12,10 +12,10 @@ SQUARE = pathlib.Path(__file__).resolve().parents[2] / 'data' / 'square_8m.json'
 
 
 def _min_separation(proximity_period_s: float) -> dict:
-    """12 robots of the three types crossing into an 8 m square (seed 1, where robots
+    """12 robots of the three types crossing into an 8 m square (seed 3, where robots
     meet on the way in)."""
     scenario = Scenario(shape=load_shape(str(SQUARE)), type_counts={1: 5, 2: 4, 3: 3},
-                        n_beacons=3, half_size=15.0, seed=1, duration_s=60.0,
+                        n_beacons=3, half_size=15.0, seed=3, duration_s=60.0,
                         proximity_period_s=proximity_period_s)
     return HeadlessSwarm(scenario).run().metrics
 
