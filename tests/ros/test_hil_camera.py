@@ -1,6 +1,7 @@
-"""The hardware-in-the-loop world's rendered camera through camera_tracker_node: the
-tracker's /agent_K/pose matches the boards' true poses (/truth/agent_K/pose) to within a
-centimetre and 3 degrees, and the hil_world publishes no /agent_K/pose of its own."""
+"""The hardware-in-the-loop world's true poses rendered by camera_sim_node, through
+camera_tracker_node: the tracker's /agent_K/pose matches the boards' true poses
+(/truth/agent_K/pose) to within a centimetre and 3 degrees, and the hil_world publishes
+neither images nor an /agent_K/pose of its own."""
 
 from __future__ import annotations
 
@@ -17,8 +18,10 @@ from spin import ros_context, spin_until  # noqa: E402
 
 from swarm_bridge.arena_calibration import calibrate  # noqa: E402
 from swarm_bridge.camera_render import CameraRenderer, sim_camera_config  # noqa: E402
+from swarm_bridge.camera_sim_node import CameraSimNode  # noqa: E402
+from swarm_bridge.camera_sim_node import PARAMETERS as CAMERA  # noqa: E402
 from swarm_bridge.camera_tracker_node import CameraTrackerNode  # noqa: E402
-from swarm_bridge.hil_world_node import HilWorldNode, PARAMETERS  # noqa: E402
+from swarm_bridge.hil_world_node import HilWorldNode  # noqa: E402
 from swarm_common import qos  # noqa: E402
 
 
@@ -27,7 +30,7 @@ def _yaw(msg: PoseStamped) -> float:
 
 
 def test_rendered_camera_and_tracker_give_the_true_poses(tmp_path):
-    params = {name: default for name, (default, _) in PARAMETERS.items()}
+    params = {name: default for name, (default, _) in CAMERA.items()}
     calibrate(CameraRenderer(sim_camera_config(params)).render([])).save(tmp_path / 'cal.yaml')
     poses = [-0.55, -0.55, 0.0, 0.55, -0.55, 90.0, 0.55, 0.55, 180.0, -0.55, 0.55, -90.0,
              0.0, -0.62, 45.0]
@@ -35,11 +38,12 @@ def test_rendered_camera_and_tracker_give_the_true_poses(tmp_path):
         world = HilWorldNode(context=context, parameter_overrides=[
             Parameter('camera', value='image'), Parameter('relay_radio', value=False),
             Parameter('initial_poses', value=poses)])
+        camera = CameraSimNode(context=context)
         tracker = CameraTrackerNode(context=context, parameter_overrides=[
             Parameter('calibration_file', value=str(tmp_path / 'cal.yaml'))],
             cli_args=['--ros-args', '-r', 'image:=/camera/image_raw'])
         probe = rclpy.create_node('probe', context=context)
-        for node in (world, tracker, probe):
+        for node in (world, camera, tracker, probe):
             executor.add_node(node)
         truth, seen = {}, {}
         for k in world.boards:
@@ -66,8 +70,8 @@ def test_rendered_camera_and_tracker_give_the_true_poses(tmp_path):
                 return {name for name, _ in
                         world.get_publisher_names_and_types_by_node(node, '/')}
 
-            # The images leave through a DDS participant of their own (hil_camera), the
-            # poses come from the tracker: the world publishes neither.
+            # The images come from the camera node (hil_camera), the poses from the
+            # tracker: the world publishes neither.
             assert spin_until(executor, lambda: '/camera/image_raw' in published('hil_camera'))
             world_topics = published('hil_world')
             assert '/camera/image_raw' not in world_topics
@@ -75,5 +79,5 @@ def test_rendered_camera_and_tracker_give_the_true_poses(tmp_path):
         finally:
             tracker.close()
             world.close()
-            for node in (world, tracker, probe):
+            for node in (world, camera, tracker, probe):
                 node.destroy_node()

@@ -26,6 +26,16 @@ def test_world_node_settings_override_the_config_file(tmp_path):
     assert hil.hil_world_node(tmp_path, _args(camera='sim')).parameters['camera'] == 'image'
 
 
+def test_the_rendered_camera_is_a_process_of_its_own_with_the_worlds_camera_settings():
+    world = {'port_link': '/tmp/pty', 'camera': 'image', 'camera_rate_hz': 10.0,
+             'camera_latency_s': 0.05, 'camera_blur_px': 0.9, 'fleet_file': '',
+             'radio_loss': 0.0}
+    spec = hil.camera_sim_node(world)
+    assert (spec.executable, spec.process) == ('camera_sim_node', 'hil_camera')
+    assert spec.parameters == {'camera_rate_hz': 10.0, 'camera_latency_s': 0.05,
+                               'camera_blur_px': 0.9, 'fleet_file': ''}
+
+
 def test_agents_tracker_bridge_and_mission():
     robots = load_fleet(None)
     poses = [(0.1 * k, -0.5, math.pi / 2) for k in range(len(robots))]

@@ -6,18 +6,13 @@ Stands for everything outside the software under test:
   of firmware twins on a pseudo-terminal (bridge_node's ``port``; the node links the pty
   to ``port_link`` so a launcher knows it before starting the bridge). Each board
   integrates its own half-steps into a pose (forward kinematics of eqs. 5.1-5.3);
-- the overhead E/O camera of thesis 5.1, at ``camera_rate_hz``. With ``camera: truth``
-  it publishes every robot's pose as ``agent_K/pose`` (geometry_msgs/PoseStamped, map
-  frame, yaw counter-clockwise), optionally with Gaussian noise (``camera_noise_m``,
-  seeded). With ``camera: image`` it renders the arena from above instead
-  (:mod:`swarm_bridge.camera_render`: covers, floor, corner markers, lighting gradient,
-  blur, noise; ``camera_*`` parameters) and publishes the frame on
-  ``camera/image_raw`` (sensor_msgs/Image bgr8, stamped at capture; reliable, depth 1:
-  best effort lost 15-40 % of the 0.9 MB frames in bursts of up to 1.7 s on this loaded
-  2-core machine; through a DDS participant of its own, so that the frames never delay
-  the radio's) ``camera_latency_s`` after its capture: camera_tracker_node
-  (``image_reliable``) turns it into ``agent_K/pose``. Either way the
-  boards' true poses go to ``truth/agent_K/pose`` (metrics only; no agent reads them);
+- the overhead E/O camera of thesis 5.1, at ``camera_rate_hz``: the boards' true poses
+  go to ``truth/agent_K/pose`` (geometry_msgs/PoseStamped, map frame, yaw
+  counter-clockwise; one stamp per tick; no agent reads them). With ``camera: truth``
+  the world also publishes them as the camera's ``agent_K/pose``, optionally with
+  Gaussian noise (``camera_noise_m``, seeded). With ``camera: image`` it publishes no
+  ``agent_K/pose``: camera_sim_node, a process of its own, renders the true poses into
+  ``camera/image_raw`` and camera_tracker_node turns the images into ``agent_K/pose``;
 - the XBee mesh between the agents (Fig. 5.1): a frame on ``radio/tx`` goes through
   the simulator's radio medium (``swarm_bridge.hil_mesh``: range, line of sight,
   per-receiver loss, airtime and latency, ``radio_*`` parameters whose defaults are
@@ -40,19 +35,14 @@ import time
 from geometry_msgs.msg import PoseStamped
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
-import rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
-from rclpy.time import Time
-from sensor_msgs.msg import Image
 
 from swarm_agent.conversions import frames_or_log, frames_to_msg, pose_stamped
-from swarm_bridge.camera_render import CameraRenderer, Cover, sim_camera_config, SimCamera
 from swarm_bridge.emulator import EmulatedRadio, PtyEmulator
 from swarm_bridge.hil_mesh import HilMesh
-from swarm_bridge.image_msgs import image_to_msg
 from swarm_common import qos
-from swarm_common.fleet import initial_poses, load_coordinator, load_cover_colors, load_fleet
+from swarm_common.fleet import initial_poses, load_coordinator, load_fleet
 from swarm_common.ros_support import run_node
 from swarm_msgs.msg import RadioPacketArray
 from swarm_sim.medium import MediumConfig
@@ -63,16 +53,11 @@ PARAMETERS = {
     'fleet_file': ('', 'Fleet YAML (default: the package config/fleet.yaml)'),
     'port_link': ('', 'Symlink created to the pty for bridge_node (empty: none)'),
     'initial_poses': ([0.0], 'x,y,yaw_deg per robot in fleet order (default: a row)'),
-    'camera_rate_hz': (10.0, 'Rate of the overhead camera poses'),
+    'camera_rate_hz': (10.0, 'Rate of the true poses (and of the camera poses of truth)'),
     'camera_noise_m': (0.0, 'Standard deviation of the camera position noise, m'),
     'camera_seed': (0, 'Seed of the camera noise'),
-    'camera': ('truth', "truth: publish the boards' poses on /agent_K/pose; image: render "
-                        'the overhead camera on /camera/image_raw for camera_tracker_node'),
-    'camera_latency_s': (0.05, 'Rendered camera: capture to publication, s'),
-    'camera_brightness': (1.0, 'Rendered camera: overall light (0.3 dim .. 1.3 bright)'),
-    'camera_gradient': (0.3, 'Rendered camera: light falls by this fraction across the image'),
-    'camera_blur_px': (0.9, 'Rendered camera: lens blur, Gaussian sigma in pixels'),
-    'camera_image_noise': (2.0, 'Rendered camera: sensor noise, 8-bit digital numbers'),
+    'camera': ('truth', "truth: publish the boards' poses on /agent_K/pose; image: none "
+                        '(camera_sim_node renders them for camera_tracker_node)'),
     'pump_period': (0.005, 'Seconds between serial transfers and board time steps'),
     'relay_radio': (True, 'Carry /radio/tx frames to the agents through the radio medium'),
     'radio_loss': (MEDIUM.loss, 'Per-receiver frame loss probability of the mesh'),
@@ -83,7 +68,7 @@ PARAMETERS = {
 
 
 class HilWorldNode(Node):
-    """Emulated robots, camera and mesh radio; see the module docstring."""
+    """Emulated robots, their true poses and the mesh radio; see the module docstring."""
 
     def __init__(self, **kwargs) -> None:
         super().__init__('hil_world', **kwargs)
@@ -116,23 +101,8 @@ class HilWorldNode(Node):
         sensor, radio = QoSProfile(**qos.SENSOR), QoSProfile(**qos.RADIO)
         if p['camera'] not in ('truth', 'image'):
             raise ValueError(f'camera {p["camera"]!r}: use truth or image')
-        self._sim_camera = None
-        self._camera_node = None
         self._pose_pubs = {}
-        if p['camera'] == 'image':
-            colors = load_cover_colors(p['fleet_file'] or None)
-            self._covers = {r.id: (colors[r.color], r.radius) for r in self.robots}
-            self._sim_camera = SimCamera(CameraRenderer(sim_camera_config(p)))
-            # The camera publishes through a participant of its own: its 0.9 MB frames then
-            # never hold up the radio's frames in this participant's transport (measured:
-            # radio frames up to 2.8 s late when both shared one, 14 ms apart).
-            self._camera_context = rclpy.Context()
-            rclpy.init(context=self._camera_context)
-            self._camera_node = rclpy.create_node('hil_camera', namespace=self.get_namespace(),
-                                                  context=self._camera_context)
-            self._image_pub = self._camera_node.create_publisher(
-                Image, 'camera/image_raw', QoSProfile(depth=1, reliability=1, durability=2))
-        else:
+        if p['camera'] == 'truth':
             self._pose_pubs = {k: self.create_publisher(PoseStamped, f'agent_{k}/pose',
                                                         sensor)
                                for k in self.boards}
@@ -155,28 +125,19 @@ class HilWorldNode(Node):
         self.emulator.pump(now)
         if self._mesh is not None:
             self._deliver(now)
-        if self._sim_camera is not None:
-            clock = self.get_clock().now().nanoseconds
-            for captured, image in self._sim_camera.ready(clock * 1e-9):
-                stamp = Time(nanoseconds=int(captured * 1e9)).to_msg()
-                self._image_pub.publish(image_to_msg(image, stamp, 'camera'))
 
     def _camera(self) -> None:
         now = self.get_clock().now()
         stamp = now.to_msg()
         noise = self.params['camera_noise_m']
-        covers = []
         for k, board in self.boards.items():
             x, y, yaw = board.pose()
             self._truth_pubs[k].publish(pose_stamped(x, y, yaw, stamp))
-            if self._sim_camera is not None:
-                covers.append(Cover(self._covers[k][0], self._covers[k][1], x, y, yaw))
+            if not self._pose_pubs:
                 continue
             if noise > 0.0:
                 x, y = np.array([x, y]) + self._rng.normal(0.0, noise, 2)
             self._pose_pubs[k].publish(pose_stamped(x, y, yaw, stamp))
-        if self._sim_camera is not None:
-            self._sim_camera.capture(now.nanoseconds * 1e-9, covers)
         if self._mesh is not None:
             self._move_mesh()
 
@@ -202,14 +163,10 @@ class HilWorldNode(Node):
                 self._rx_pubs[k].publish(frames_to_msg(frame, stamp))
 
     def close(self) -> None:
-        """Remove the pty link, close the pty and the camera's participant."""
+        """Remove the pty link and close the pty."""
         if self._link is not None and self._link.is_symlink():
             self._link.unlink(missing_ok=True)
         self.emulator.close()
-        if self._camera_node is not None:
-            self._camera_node.destroy_node()
-            rclpy.try_shutdown(context=self._camera_context)
-            self._camera_node = None
 
 
 def main(args: list[str] | None = None) -> None:

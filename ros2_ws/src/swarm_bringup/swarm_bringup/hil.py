@@ -340,7 +340,8 @@ def table(results: list[dict]) -> str:
 
 # -- the processes of one shape ---------------------------------------------------------
 def hil_world_node(port_link: pathlib.Path, args: argparse.Namespace) -> NodeSpec:
-    """The emulated robots and overhead camera (config/hil.yaml; later -p win)."""
+    """The emulated robots, their true poses and the mesh (config/hil.yaml; later -p
+    win); the world publishes the camera's poses with ``--camera truth`` only."""
     world = {'port_link': str(port_link),
              'camera': 'image' if args.camera == 'sim' else 'truth'}
     if args.camera_noise is not None:
@@ -349,6 +350,15 @@ def hil_world_node(port_link: pathlib.Path, args: argparse.Namespace) -> NodeSpe
         world['radio_loss'] = float(args.radio_loss)
     return NodeSpec('swarm_bridge', 'hil_world_node', 'hil_world', parameters=world,
                     params_files=(str(bridge_config('hil.yaml')),))
+
+
+def camera_sim_node(world: dict) -> NodeSpec:
+    """The rendered overhead camera, a process of its own, with the camera settings of
+    the world's parameters ``world`` (config/hil.yaml's hil_world section)."""
+    from swarm_bridge.camera_sim_node import PARAMETERS
+
+    return NodeSpec('swarm_bridge', 'camera_sim_node', 'hil_camera',
+                    parameters={k: v for k, v in world.items() if k in PARAMETERS})
 
 
 def camera_tracker_node(calibration: str, poses: list[tuple[float, float, float]],

@@ -17,10 +17,11 @@ agents' mesh frames travel through the simulator's radio medium between those po
 (``swarm_bridge.hil_mesh``: range, line of sight, loss, airtime, latency; ``--radio-loss``).
 
 Camera (``--camera``): ``truth`` (default) publishes the boards' poses as the camera;
-``sim`` renders the arena from above (swarm_bridge.camera_render: covers, floor, corner
-markers, light, blur, noise, latency), calibrates on the rendered corner markers and
-runs ``camera_tracker_node``, whose poses close the loop; a device (``/dev/videoN``) or
-a video file runs the real robots: no emulator, ``bridge_node`` on ``--port``, the tracker
+``sim`` renders the boards' true poses from above in a process of its own
+(``camera_sim_node``, swarm_bridge.camera_render: covers, floor, corner markers, light,
+blur, noise, latency), calibrates on the rendered corner markers and runs
+``camera_tracker_node``, whose poses close the loop; a device (``/dev/videoN``) or a
+video file runs the real robots: no emulator, ``bridge_node`` on ``--port``, the tracker
 on the camera with ``--calibration`` (written by ``camera_calibrate``). Metrics use the
 boards' true poses (/truth/agent_K/pose) when emulated, the tracker's otherwise.
 
@@ -56,6 +57,7 @@ from swarm_bringup.hil import (
     arrival_tolerance,
     bridge_config,
     bridge_node,
+    camera_sim_node,
     camera_tracker_node,
     count_warnings,
     hil_mission_node,
@@ -218,6 +220,8 @@ def run_shape(name: str, out: pathlib.Path, args: argparse.Namespace, domain: in
             children.run(hil_world_node(link, args))
             _wait(lambda: link.exists(), 20.0, 'the emulated robots (hil_world) never came up',
                   children)
+        if args.camera == 'sim':
+            children.run(camera_sim_node(params))
         if args.camera != 'truth':
             calibration = args.calibration or str(
                 sim_calibration(params, run_dir / 'camera_calibration.yaml'))
