@@ -33,7 +33,8 @@ def test_the_rendered_camera_is_a_process_of_its_own_with_the_worlds_camera_sett
     spec = hil.camera_sim_node(world)
     assert (spec.executable, spec.process) == ('camera_sim_node', 'hil_camera')
     assert spec.parameters == {'camera_rate_hz': 10.0, 'camera_latency_s': 0.05,
-                               'camera_blur_px': 0.9, 'fleet_file': ''}
+                               'camera_blur_px': 0.9}
+    assert hil.camera_sim_node({'fleet_file': '/f.yaml'}).parameters == {'fleet_file': '/f.yaml'}
 
 
 def test_agents_tracker_bridge_and_mission():

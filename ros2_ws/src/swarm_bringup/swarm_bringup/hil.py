@@ -357,8 +357,9 @@ def camera_sim_node(world: dict) -> NodeSpec:
     the world's parameters ``world`` (config/hil.yaml's hil_world section)."""
     from swarm_bridge.camera_sim_node import PARAMETERS
 
+    # An empty value is the node's default, and rcl cannot parse '-p name:='.
     return NodeSpec('swarm_bridge', 'camera_sim_node', 'hil_camera',
-                    parameters={k: v for k, v in world.items() if k in PARAMETERS})
+                    parameters={k: v for k, v in world.items() if k in PARAMETERS and v != ''})
 
 
 def camera_tracker_node(calibration: str, poses: list[tuple[float, float, float]],
