@@ -39,8 +39,7 @@ def _mean_nees(anchor_error_time_s: float, trials: int = 300, ticks: int = 20) -
                 loc.predict(t, np.zeros(2))
             beta = a * beta + math.sqrt(1.0 - a * a) * rng.normal(0.0, OWN, BEACONS.shape)
             loc.localize(t, [AnchorRange(b + beta[k], float(np.hypot(*b)) + rng.normal(0.0, TOA),
-                                         math.hypot(TOA, OWN), OWN, k)
-                             for k, b in enumerate(BEACONS)])
+                                         TOA, OWN, k) for k, b in enumerate(BEACONS)])
         e = loc.position
         nees.append(float(e @ np.linalg.solve(loc.kf.P[:2, :2], e)))
     return float(np.mean(nees))
@@ -56,9 +55,19 @@ def test_persistent_anchor_errors_are_not_counted_again_at_every_tick():
 
 
 def _rows(own: float = OWN, shared: bool = False):
-    anchors = [AnchorRange(b, float(np.hypot(*b)), math.hypot(TOA, own), own, k)
-               for k, b in enumerate(BEACONS)]
-    return usable_rows(anchors, shared=shared)
+    anchors = [AnchorRange(b, float(np.hypot(*b)), TOA, own, k) for k, b in enumerate(BEACONS)]
+    return usable_rows(anchors, shared=shared, consider=True)
+
+
+def test_the_inflation_stands_in_for_persistence_only_when_errors_are_white():
+    """``beacon_variance_inflation`` widens an anchor's error taken as white noise; held
+    as a consider parameter it enters as advertised."""
+    anchor = AnchorRange(BEACONS[0], 12.0, TOA, OWN, 3, inflation=4.0)
+    (white,) = usable_rows([anchor])
+    (held,) = usable_rows([anchor], consider=True)
+    assert white.std == pytest.approx(math.hypot(TOA, 2 * OWN)) and white.key is None
+    assert held.std == pytest.approx(math.hypot(TOA, OWN)) and held.own == OWN
+    assert held.key == 3
 
 
 @pytest.mark.parametrize('shared', [False, True])

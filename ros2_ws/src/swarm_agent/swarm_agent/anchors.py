@@ -28,23 +28,28 @@ import numpy as np
 from swarm_agent.trilateration import DegenerateGeometryError, trilaterate
 
 # (position, range, std) of a range to an anchor, optionally followed by the part of
-# that std which is the anchor's own position error (m); an ``AnchorRange`` carries it
-# and the anchor's id. Without an id the anchor's error counts as white noise.
+# that std which is the anchor's own position error (m); an ``AnchorRange`` also
+# carries the anchor's id, for its error as a consider parameter.
 Anchor = tuple
 
 
 class AnchorRange(tuple):
     """A range to an anchor as the trilateration takes it, (position, range, std), that
-    also knows the part ``own`` of the std which is the anchor's own position error (m)
-    and the anchor's ``key`` (``localization.anchor_ranges`` makes them)."""
+    also knows the part ``own`` of the std which is the anchor's own position error (m),
+    the anchor's ``key``, and, for its error as a consider parameter, the range's TOA
+    ``noise`` and the anchor's ``advertised`` deviation (m; ``own`` is that inflated,
+    ``localization.anchor_ranges``)."""
 
     own: float
     key: Hashable
+    noise: float
+    advertised: float
 
-    def __new__(cls, position: np.ndarray, rng: float, std: float, own: float,
-                key: Hashable) -> AnchorRange:
-        row = super().__new__(cls, (position, rng, std))
-        row.own, row.key = own, key
+    def __new__(cls, position: np.ndarray, rng: float, noise: float, advertised: float,
+                key: Hashable, inflation: float = 1.0) -> AnchorRange:
+        own = advertised * math.sqrt(inflation)
+        row = super().__new__(cls, (position, rng, math.hypot(noise, own)))
+        row.own, row.key, row.noise, row.advertised = own, key, noise, advertised
         return row
 
 
@@ -61,15 +66,21 @@ class Row(NamedTuple):
     key: Hashable | None = None
 
 
-def usable_rows(anchors: Sequence[Anchor], shared: bool = False) -> list[Row]:
+def usable_rows(anchors: Sequence[Anchor], shared: bool = False,
+                consider: bool = False) -> list[Row]:
     """The anchors whose numbers are finite, std positive, as ``Row``; the shared std is
     the anchor's own position error for secondary anchors (``shared``), 0 for beacons,
-    whose GPS errors are their own."""
+    whose GPS errors are their own. With ``consider`` an ``AnchorRange``'s error enters
+    with its advertised deviation, uninflated, and its key: the filter carries its
+    persistence; otherwise with the inflated one and no key (white)."""
     rows = []
     for anchor in anchors:
         p, r, s, *extra = anchor
         own = float(extra[0]) if extra else float(getattr(anchor, 'own', 0.0))
-        key = getattr(anchor, 'key', None)
+        key = None
+        if consider and isinstance(anchor, AnchorRange):
+            own, key = anchor.advertised, anchor.key
+            s = math.hypot(anchor.noise, own)
         if not (np.all(np.isfinite(p)) and np.isfinite(r) and np.isfinite(s) and s > 0
                 and np.isfinite(own)):
             continue

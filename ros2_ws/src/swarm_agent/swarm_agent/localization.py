@@ -46,7 +46,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 import enum
 import logging
-import math
 from typing import Any
 
 import numpy as np
@@ -163,13 +162,13 @@ def anchor_ranges(ranges: Sequence[tuple[int, float, float]], neighbours: Mappin
     secondary anchor.
 
     Where the anchor was when the range was measured: its last heartbeat extrapolated
-    with its own velocity estimate. Its own position uncertainty, inflated by
-    ``inflation`` (``beacon_variance_inflation``), adds to the range noise; the own std
-    is that part of the range's std, the anchor's error (``swarm_agent.anchors``).
+    with its own velocity estimate. Its own position uncertainty adds to the range
+    noise: as advertised when the filter holds it as a consider parameter, inflated by
+    ``inflation`` (``beacon_variance_inflation``) when it is taken as white noise
+    (``anchor_error_time_s`` 0), the inflation standing in for its persistence.
     """
     beacons: list[Anchor] = []
     anchors: list[Anchor] = []
-    scale = math.sqrt(inflation)
     for anchor_id, rng_m, std in ranges:
         heard = neighbours.get(anchor_id)
         if heard is None:
@@ -183,8 +182,7 @@ def anchor_ranges(ranges: Sequence[tuple[int, float, float]], neighbours: Mappin
             continue
         where = np.asarray(info.position) + (ranges_at - heard.heard_at) * np.asarray(
             info.velocity)
-        own = info.position_std * scale
-        into.append(AnchorRange(where, rng_m, math.hypot(std, own), own, anchor_id))
+        into.append(AnchorRange(where, rng_m, std, info.position_std, anchor_id, inflation))
     return beacons, anchors
 
 
@@ -337,12 +335,13 @@ class Localizer:
         robot at 0.5 m/s moves a metre in two seconds.
         """
         shift = np.asarray(displacement, dtype=float)
-        usable = usable_rows(beacons)
+        consider = self.config.anchor_error_time_s > 0
+        usable = usable_rows(beacons, consider=consider)
         enough = len(usable) >= self.config.min_beacons
         moving = self.config.anchors_while_moving and not self._standing
         self._standing = False
-        extra = usable_rows(secondary, shared=True) if secondary and (moving or not enough) \
-            else []
+        extra = usable_rows(secondary, shared=True, consider=consider) \
+            if secondary and (moving or not enough) else []
         before = self._updates()
         mode = self._tick(t, usable + extra, shift)
         if self._updates() != before:
