@@ -91,10 +91,22 @@ class Cover:
     yaw: float
 
 
+# The synthetic camera's settings as ROS parameters (camera_sim_node; config/hil.yaml's
+# camera_* values): name -> (default, description).
+SIM_CAMERA_PARAMETERS = {
+    'camera_rate_hz': (10.0, 'Frames a second (at most: one per tick of true poses)'),
+    'camera_latency_s': (0.05, 'Capture to publication, s'),
+    'camera_brightness': (1.0, 'Overall light (0.3 dim .. 1.3 bright)'),
+    'camera_gradient': (0.3, 'Light falls by this fraction across the image'),
+    'camera_blur_px': (0.9, 'Lens blur, Gaussian sigma in pixels'),
+    'camera_image_noise': (2.0, 'Sensor noise, 8-bit digital numbers'),
+    'camera_seed': (0, 'Seed of the sensor noise'),
+}
+
+
 def sim_camera_config(params: dict) -> CameraConfig:
-    """The synthetic camera of the hardware-in-the-loop world from hil_world_node's
-    parameters (config/hil.yaml: camera_rate_hz, camera_latency_s, camera_brightness,
-    camera_gradient, camera_blur_px, camera_image_noise, camera_seed)."""
+    """The synthetic camera of the hardware-in-the-loop world from the
+    ``SIM_CAMERA_PARAMETERS`` values ``params`` (camera_sim_node's parameters)."""
     return CameraConfig(rate_hz=float(params['camera_rate_hz']),
                         latency_s=float(params['camera_latency_s']),
                         brightness=float(params['camera_brightness']),

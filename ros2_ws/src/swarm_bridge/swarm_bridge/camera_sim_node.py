@@ -31,7 +31,13 @@ from rclpy.time import Time
 from sensor_msgs.msg import Image
 
 from swarm_agent.conversions import yaw_of
-from swarm_bridge.camera_render import CameraRenderer, Cover, sim_camera_config, SimCamera
+from swarm_bridge.camera_render import (
+    CameraRenderer,
+    Cover,
+    sim_camera_config,
+    SIM_CAMERA_PARAMETERS,
+    SimCamera,
+)
 from swarm_bridge.image_msgs import image_to_msg
 from swarm_common import qos
 from swarm_common.fleet import load_cover_colors, load_fleet
@@ -39,13 +45,7 @@ from swarm_common.ros_support import run_node
 
 PARAMETERS = {
     'fleet_file': ('', 'Fleet YAML: ids, cover colours and radii (default: config/fleet.yaml)'),
-    'camera_rate_hz': (10.0, 'Frames a second (at most: one per tick of true poses)'),
-    'camera_latency_s': (0.05, 'Capture to publication, s'),
-    'camera_brightness': (1.0, 'Overall light (0.3 dim .. 1.3 bright)'),
-    'camera_gradient': (0.3, 'Light falls by this fraction across the image'),
-    'camera_blur_px': (0.9, 'Lens blur, Gaussian sigma in pixels'),
-    'camera_image_noise': (2.0, 'Sensor noise, 8-bit digital numbers'),
-    'camera_seed': (0, 'Seed of the sensor noise'),
+    **SIM_CAMERA_PARAMETERS,
     'publish_period': (0.005, 'Seconds between checks for frames whose latency has passed'),
 }
 

@@ -355,11 +355,13 @@ def hil_world_node(port_link: pathlib.Path, args: argparse.Namespace) -> NodeSpe
 def camera_sim_node(world: dict) -> NodeSpec:
     """The rendered overhead camera, a process of its own, with the camera settings of
     the world's parameters ``world`` (config/hil.yaml's hil_world section)."""
-    from swarm_bridge.camera_sim_node import PARAMETERS
+    from swarm_bridge.camera_render import SIM_CAMERA_PARAMETERS
 
     # An empty value is the node's default, and rcl cannot parse '-p name:='.
     return NodeSpec('swarm_bridge', 'camera_sim_node', 'hil_camera',
-                    parameters={k: v for k, v in world.items() if k in PARAMETERS and v != ''})
+                    parameters={k: v for k, v in world.items()
+                                if (k in SIM_CAMERA_PARAMETERS or k == 'fleet_file')
+                                and v != ''})
 
 
 def camera_tracker_node(calibration: str, poses: list[tuple[float, float, float]],
