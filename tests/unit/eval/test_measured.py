@@ -157,6 +157,17 @@ def test_dsdv_faults_hil_and_mesh_render_from_their_files(tmp_path):
          'total_displacement': 4.0757, 'displacement_lower_bound': 3.6653}]}))
     assert hil == ('hw_square settled at 38.6 s, every robot within 2.0 cm of its goal '
                    '(displacement 4.08 m, bound 3.67 m)')
+    arrived = measured.hil_result(_write(tmp_path / 'a', 'hil.json', {'results': [
+        {'shape': 'hw_line', 'settling_time': 60.2, 'arrival_time': 66.5,
+         'final_goal_error': [0.019], 'total_displacement': 6.17,
+         'displacement_lower_bound': 5.5}, {'shape': 'hw_arrow', 'settling_time': 30.0,
+                                            'arrival_time': None, 'final_goal_error': [0.2],
+                                            'total_displacement': 3.3,
+                                            'displacement_lower_bound': 3.0}]}))
+    assert arrived == ('hw_line settled at 60.2 s, arrived at 66.5 s, every robot within 1.9 '
+                       'cm of its goal (displacement 6.17 m, bound 5.50 m); hw_arrow settled '
+                       'at 30.0 s, not arrived, every robot within 20.0 cm of its goal '
+                       '(displacement 3.30 m, bound 3.00 m)')
     stats = {'epsilon_t': {'mean': 0.40, 'max': 0.48}, 'epsilon_g': {'mean': 0.033,
                                                                     'max': 0.033}}
     fractal = {'epsilon_t': {'mean': 0.9, 'max': 1.0}, 'epsilon_g': {'mean': 0.12, 'max': 0.2}}

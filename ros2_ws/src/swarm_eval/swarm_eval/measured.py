@@ -261,12 +261,17 @@ def fault_result(path: pathlib.Path) -> str:
 
 
 def hil_result(path: pathlib.Path) -> str:
-    """hil.json: per shape the settling time and the robots' final distance to their goals."""
+    """hil.json: per shape the settling time (eq. 5.4), the arrival time (every robot at a
+    distinct goal, the end of a run) and the robots' final distance to their goals."""
     out = []
     for r in _need(_json(path / 'hil.json').get('results'), path / 'hil.json', 'results'):
         far = max(r.get('final_goal_error') or [math.nan])
         when = (f'settled at {r["settling_time"]:.1f} s' if r.get('settling_time') is not None
                 else str(r.get('outcome')))
+        if r.get('arrival_time') is not None:
+            when += f', arrived at {r["arrival_time"]:.1f} s'
+        elif 'arrival_time' in r:
+            when += ', not arrived'
         out.append(f'{r["shape"]} {when}, every robot within {_f(100 * far, 1)} cm of its goal'
                    f' (displacement {_f(r.get("total_displacement"), 2)} m, bound '
                    f'{_f(r.get("displacement_lower_bound"), 2)} m)')
