@@ -1,10 +1,9 @@
 """The Measured table (docs/measured.md): each row declared once, rendered from its runs' files.
 
 A row (``Row``) says what it measures and holds its runs (``Run``): the exact command
-(argv; ``{out}`` is the run's directory under one results directory), the files the
-command writes there and the function that reads them into the run's part of the Result
-cell. No figure of the page is typed by hand: a run whose files are missing renders as
-"not measured" next to its command.
+(argv; ``{out}``: the run's directory under one results directory), the files it writes
+there and the function that reads them into the run's part of the Result cell. No figure
+is typed by hand: a run whose files are missing renders as "not measured".
 
   measure run --out results/measured [--rows faults,mesh] [--force] [--extra 'mesh=--seeds 2']
   measure render results/measured [--write docs/measured.md] [--from shapes30_seed100=DIR]
@@ -261,17 +260,14 @@ def fault_result(path: pathlib.Path) -> str:
 
 
 def hil_result(path: pathlib.Path) -> str:
-    """hil.json: per shape the settling time (eq. 5.4), the arrival time (every robot at a
-    distinct goal, the end of a run) and the robots' final distance to their goals."""
+    """hil.json: per shape eq. 5.4's settling time, arrival time and final goal error."""
     out = []
     for r in _need(_json(path / 'hil.json').get('results'), path / 'hil.json', 'results'):
-        far = max(r.get('final_goal_error') or [math.nan])
-        when = (f'settled at {r["settling_time"]:.1f} s' if r.get('settling_time') is not None
-                else str(r.get('outcome')))
-        if r.get('arrival_time') is not None:
-            when += f', arrived at {r["arrival_time"]:.1f} s'
-        elif 'arrival_time' in r:
-            when += ', not arrived'
+        far, at, st = (max(r.get('final_goal_error') or [math.nan]), r.get('arrival_time'),
+                       r.get('settling_time'))
+        when = f'settled at {st:.1f} s' if st is not None else str(r.get('outcome'))
+        when += ('' if 'arrival_time' not in r else ', not arrived' if at is None
+                 else f', arrived at {at:.1f} s')
         out.append(f'{r["shape"]} {when}, every robot within {_f(100 * far, 1)} cm of its goal'
                    f' (displacement {_f(r.get("total_displacement"), 2)} m, bound '
                    f'{_f(r.get("displacement_lower_bound"), 2)} m)')
