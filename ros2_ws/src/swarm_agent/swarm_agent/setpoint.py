@@ -13,9 +13,23 @@ must satisfy u_j . v <= (rate / 2) h_j, so a pair can close its gap at most at
 ``rate`` times the gap (each robot takes half) and never crosses h = 0 in continuous
 time; a robot inside the buffer (h_j < 0) must back away at (rate / 2) |h_j|. A
 parked robot (setpoint zero) therefore yields to one that comes too close. Ahead of
-the filter, part of the speed towards a close neighbour is turned to the right
-(``swerve``): two robots meeting head-on, or a robot behind a parked one, would
-otherwise stop in front of each other for good.
+the filter, ``swerve`` times the speed towards a close neighbour (s = u_j . v > 0) is
+turned sideways: two robots meeting head-on, or a robot behind a parked one, would
+otherwise stop in front of each other for good. The turn is to the right, so that both
+robots of a meeting turn the same way round each other (turns that cancel between the
+two let the crossing pair and the ring swap of test_collision_dynamics 3-5 cm into the
+buffer).
+Against a setpoint that passes the neighbour on the left with a sideways part t
+(positive to the right) the right turn leaves t + swerve s, zero at t = -swerve s, 26.6
+degrees off the line of centres for swerve 0.5: pressed against the neighbour there,
+the robot gets no command although its setpoint is not zero. Robots slowing for goals
+that a neighbour stands on or beside press it exactly there, and hold it: three robots
+around a gap narrower than the one passing through, the other two 2-3 cm from their
+goals, hold each other still so for good (the hw_arrow case of docs/camera.md). A robot
+whose setpoint is below ``v_max`` (slowing for its goal) therefore turns left instead
+wherever the right turn would leave less than swerve s / 2 sideways (|t + swerve s| <
+swerve s / 2): its sideways part is then at least swerve s / 2 in size, whichever way
+it passes.
 
 That guarantee holds for the velocity commanded, but a robot has mass: the LQR loop
 (eqs. 3.108-3.110) follows a changing command about tau = (b + K_v) / K_e behind
@@ -70,7 +84,7 @@ class SetpointParams:
         low=1e-3, high=100.0, live=True)
     avoid_buffer: float = tunable(0.3, 'Gap kept free beyond the summed coverage radii, m',
                                   low=0.0, high=10.0, live=True)
-    swerve: float = tunable(0.5, 'Share of the speed towards a close neighbour turned right',
+    swerve: float = tunable(0.5, 'Share of the speed towards a close neighbour turned aside',
                             low=0.0, high=1.0, live=True)
     yield_margin: float = tunable(
         0.0, 'A parked robot steps aside for one closer than this beyond avoid_buffer, m',
@@ -159,7 +173,13 @@ def avoid_collisions(velocity, offsets, radii, own_radius: float,
         towards = unit @ v
         closing = towards > 0.0
         right = np.column_stack([unit[:, 1], -unit[:, 0]])
-        v = v + params.swerve * (towards[closing, None] * right[closing]).sum(axis=0)
+        # Right; left where the right turn would all but cancel the setpoint's own
+        # sideways part of a robot slowing for its goal (module docstring).
+        slowing = np.hypot(*v) < params.v_max * (1.0 - 1e-9)     # not saturated
+        left = slowing & (np.abs(right @ v + params.swerve * towards)
+                          < 0.5 * params.swerve * towards)
+        way = np.where(left, -1.0, 1.0)
+        v = v + params.swerve * ((way * towards)[closing, None] * right[closing]).sum(axis=0)
     return _saturate(_closest_feasible(v, unit, bound), params.v_max)
 
 
