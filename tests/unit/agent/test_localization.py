@@ -613,3 +613,26 @@ def test_a_widened_prior_lets_the_first_fix_place_a_restarted_robot():
     loc = Localizer(LocalizationConfig(initial_position_std=0.3), (0.0, 0.0))
     loc.widen(0.1)                        # narrower than the prior: nothing changes
     assert loc.worst_std == pytest.approx(0.3)
+
+
+def test_a_restarted_agent_learns_the_velocity_its_robot_drives_at():
+    """``restarted(t)``: the body may be mid-drive, so the velocity prior widens to
+    ``max_speed`` along with the position's. A robot driving at 0.5 m/s, its agent
+    restarted 12 s into the run: two exact fixes 3 s apart give the filter its velocity
+    (the IMU reads no acceleration), and its dead reckoning 3 s on stays within 0.2 m.
+    With the position alone widened the velocity stays the standing robot's
+    0 +/- 0.01 m/s and the estimate falls 1.5 m behind by the next tick."""
+    v = np.array([0.5, 0.0])
+
+    def error_after(restart) -> float:
+        loc = Localizer(LocalizationConfig(initial_position_std=0.3), (0.0, 0.0))
+        restart(loc)
+        for k in range(91):                       # IMU at 10 Hz, no acceleration
+            t = k / 10.0
+            loc.predict(t, (0.0, 0.0))
+            if k in (30, 60):
+                loc.localize(t, _beacons(np.array([6.0, 0.0]) + v * t, 5, std=0.05))
+        return float(np.hypot(*(loc.position - (np.array([6.0, 0.0]) + v * 9.0))))
+
+    assert error_after(lambda loc: loc.restarted(12.0)) < 0.2
+    assert error_after(lambda loc: loc.widen(12.0)) > 1.0

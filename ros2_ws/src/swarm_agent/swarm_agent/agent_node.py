@@ -438,16 +438,17 @@ class AgentNode(Node):
 
     def _late_start(self, t: float) -> None:
         """First step at sim time ``t``: an agent (re)started mid-run (a respawn) widens
-        its deployment prior to the distance the robot can have driven since t = 0."""
+        its deployment prior to the distance the robot can have driven since t = 0, and
+        its velocity prior to the robot's top speed (``Localizer.restarted``)."""
         clock = self.get_clock()
         if not (clock.clock_type == ClockType.ROS_TIME and clock.ros_time_is_active):
             return    # wall time (hardware): no run time to go by
         loc = self.brain.localizer
-        std = loc.config.max_speed * t
-        if t > LATE_START_S and std > loc.worst_std:
-            loc.widen(std)
-            self.get_logger().info(f'started at sim time {t:.1f} s: position prior widened '
-                                   f'to {std:.1f} m (the robot may have driven since)')
+        if t > LATE_START_S and loc.config.max_speed * t > loc.worst_std:
+            loc.restarted(t)
+            self.get_logger().info(
+                f'started at sim time {t:.1f} s: prior widened to {loc.worst_std:.1f} m and '
+                f'{loc.config.max_speed:.1f} m/s (the robot may have driven since)')
 
     # -- outputs
     def on_control(self) -> None:

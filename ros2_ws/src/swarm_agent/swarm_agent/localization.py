@@ -284,21 +284,32 @@ class Localizer:
                        velocity_std)
         self.mode = Mode.LOST
 
-    def widen(self, position_std: float) -> None:
-        """The robot may be up to about ``position_std`` (m) from the estimate: an agent
-        process restarted mid-run starts from the deployment prior while its body may have
-        driven since. The prior's position deviation becomes at least that (its
-        correlations dropped), so the first trilateration places the robot (3.1.1)
-        instead of being gated as far from a confident prior."""
-        if not position_std ** 2 > np.linalg.eigvalsh(self.kf.P[:2, :2])[-1]:
-            return
+    def widen(self, position_std: float, velocity_std: float = 0.0) -> None:
+        """The robot may be up to about ``position_std`` (m) from the estimate and move at
+        up to about ``velocity_std`` (m/s): each deviation becomes at least that, its
+        correlations dropped, so the first trilateration places the robot (3.1.1)
+        instead of being gated as far from a confident prior, and consecutive fixes
+        give its velocity instead of a standing robot's dead reckoning."""
         p = self.kf.P.copy()
-        p[:2, :] = 0.0
-        p[:, :2] = 0.0
-        p[0, 0] = p[1, 1] = position_std ** 2
+        widened = False
+        for block, std in ((slice(0, 2), position_std), (slice(2, 4), velocity_std)):
+            if std ** 2 > np.linalg.eigvalsh(p[block, block])[-1]:
+                p[block, :] = 0.0
+                p[:, block] = 0.0
+                p[block, block] = np.eye(2) * std ** 2
+                widened = True
+        if not widened:
+            return
         self.kf.P = p
         self.kf.forget_consider()
         self.beacon_only = False
+
+    def restarted(self, t: float) -> None:
+        """This agent's process started at run time ``t`` (s), its robot's body possibly
+        driving since t = 0: from the deployment prior it may have driven ``max_speed``
+        * t and it may be moving at up to ``max_speed`` (``widen``)."""
+        speed = self.config.max_speed
+        self.widen(speed * t, speed)
 
     def stand_still(self) -> None:
         """Zero-velocity update: the robot is parked (no force, held by dry friction).

@@ -37,7 +37,6 @@ import numpy as np
 from swarm_agent.agent_factory import make_brain, swarm_keyring
 from swarm_agent.brain import AgentBrain
 from swarm_agent.frame_auth import FrameAuth, FrameAuthError
-from swarm_agent.localization import LocalizationConfig
 from swarm_agent.mission_radio import MeshListener
 from swarm_common.fleet import place_fleet, PLACEMENT_STD_M, random_fleet, RobotSpec
 from swarm_common.robot_types import load_robot_types
@@ -225,16 +224,19 @@ class HeadlessSwarm:
         """Robot ``r``'s brain as its agent node builds it, booted at ``boot_time_s`` of
         simulated time (the clock of ``dsdv.boot_sequence`` here: runs stay reproducible),
         at run time ``t``. Its prior is the fleet position with the placement error; at
-        ``t`` > 0 the body may have driven ``max_speed * t`` from there, which the prior's
-        deviation then says, so the first trilateration places it (thesis 3.1.1)."""
+        ``t`` > 0 the body may have driven from there and still be driving, which the
+        prior then says (``Localizer.restarted``, as a respawned agent node does), so the
+        first trilateration places it (thesis 3.1.1)."""
         sc = self.scenario
-        std = max(sc.placement_std_m, LocalizationConfig().max_speed * t)
-        return make_brain(agent_id=r.id, agent_type=r.type, is_beacon=r.is_beacon,
-                          method=sc.method, initial_position=(r.x, r.y),
-                          seed=sc.seed * 100_003 + r.id,
-                          localization_period_s=sc.localization_period_s,
-                          initial_position_std=std,
-                          keyring=self._keyring, auth=sc.auth, boot_time_s=boot_time_s)
+        brain = make_brain(agent_id=r.id, agent_type=r.type, is_beacon=r.is_beacon,
+                           method=sc.method, initial_position=(r.x, r.y),
+                           seed=sc.seed * 100_003 + r.id,
+                           localization_period_s=sc.localization_period_s,
+                           initial_position_std=sc.placement_std_m,
+                           keyring=self._keyring, auth=sc.auth, boot_time_s=boot_time_s)
+        if t > 0.0:
+            brain.localizer.restarted(t)
+        return brain
 
     def restart(self, t: float, agent_ids: Sequence[int],
                 boot_time_s: float | None = None) -> None:
