@@ -79,6 +79,10 @@ from swarm_bringup.launch_plan import counts_of, type_counts_text
 from swarm_bringup.launcher import Children
 from swarm_common.domains import claim_domain, DomainError
 
+# A shape stamp older than this (or in the future) is not this run's announcement on
+# this machine's clock: the monitor's own reception time stands in.
+STAMP_AGE_MAX_S = 30.0
+
 
 class Monitor:
     """In-process node recording camera poses, agent states and the shape announcement."""
@@ -152,9 +156,15 @@ class Monitor:
             self.states[k] = msg
 
     def _on_shape(self, msg) -> None:
+        """t = 0 of the run: when the mission set the shape (its stamp, on this machine's
+        wall clock), not when this monitor heard it: under load it hears the shape up to
+        seconds after the agents, which have started driving by then."""
+        now, wall = time.monotonic(), time.time()
+        stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        age = wall - stamp
         with self.lock:
             if self.shape_time is None:
-                self.shape_time = time.monotonic()
+                self.shape_time = now - age if 0.0 <= age < STAMP_AGE_MAX_S else now
 
     def snapshot(self) -> tuple[dict, dict, float | None]:
         with self.lock:
