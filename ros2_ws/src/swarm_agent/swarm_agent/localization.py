@@ -140,10 +140,13 @@ class LocalizationConfig:
     anchors_while_moving: bool = tunable(
         True, 'A moving agent ranges to secondary anchors even with enough beacons',
         live=True)
-    # An anchor's error persists over 20-40 s (module docstring): it is a consider
-    # parameter of the filter, first-order Gauss-Markov with this time constant.
+    # An anchor's error persists over 20-40 s (module docstring). Above 0 it is a
+    # consider parameter of the filter, first-order Gauss-Markov with this time
+    # constant; 0 takes it as white with the variance inflated (beacon_variance_inflation),
+    # which on the 60 shapes of the shape study left the maximum errors lower
+    # (docs/localization.md).
     anchor_error_time_s: float = tunable(
-        30.0, "Time constant of an anchor's persistent position error, s (0: white)",
+        0.0, "Time constant of an anchor's persistent position error, s (0: white)",
         low=0.0, high=1000.0)
 
 
