@@ -158,8 +158,7 @@ class KalmanFilter:
         return float(y @ np.linalg.solve(s, y))
 
     def update_ranges(self, beacons, ranges, variances, offset=(0.0, 0.0),
-                      iterations: int = 5, consider: Consider | None = None,
-                      position_only: bool = False) -> None:
+                      iterations: int = 5, consider: Consider | None = None) -> None:
         """Iterated extended Kalman update with TOA ranges (Gauss-Newton on the prior
         and the ranges, the maximum a posteriori estimate; Joseph form at the end).
         ``variances``: one per range, or their covariance matrix (the white part of the
@@ -174,10 +173,6 @@ class KalmanFilter:
         (-u_k^T in anchor k's slot) and C the state's covariance with them,
         S = H P H^T + H C H_b^T + H_b C^T H^T + H_b B H_b^T + R, K = (P H^T + C H_b^T)
         S^-1, C <- C - K (H C + H_b B); the anchors' errors are not estimated.
-
-        ``position_only``: the gain's velocity and bias rows are zero, so those states
-        are considered, not estimated (the same Schmidt idea); the Joseph form keeps P
-        the covariance of this suboptimal update, their own variances unchanged.
         """
         beacons = np.asarray(beacons, float)
         z = np.asarray(ranges, float)
@@ -193,8 +188,6 @@ class KalmanFilter:
             pht = p0 @ h.T + c0 @ hb.T
             s = h @ pht + hb @ (c0.T @ h.T + b @ hb.T) + r
             k = pht @ np.linalg.inv(s)
-            if position_only:
-                k[2:] = 0.0
             step = x0 + k @ (z - predicted - h @ (x0 - x))
             converged = float(np.hypot(*(step[:2] - x[:2]))) < 1e-4
             x = step

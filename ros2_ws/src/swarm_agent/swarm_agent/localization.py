@@ -24,17 +24,6 @@ LOST: a tick without three beacons is a miss, as in 3.1.3). With a wide prior (t
 first fix, or after a long stretch without beacons) the agent trilaterates as the
 thesis does.
 
-Fewer than three anchors (beyond the thesis): the ranges of a tick with fewer than
-``min_beacons`` anchors correct the position only; the velocity and the accelerometer
-bias are considered, not estimated (``lost_position_only``, a Schmidt update). Such
-anchors are mostly beacons driving on 2 m GPS, whose own errors persist for 20-40 s and
-drift as they drive: one or two of them cannot tell that drift from the agent's motion.
-Estimated from them, the velocity of the study's worst agents ended 0.05-0.07 m/s off
-while claiming 0.02-0.03 m/s, and their first localization after such a stretch landed
-1.4-2.8 m off. Kept out of the velocity, the ranges still hold the position along their
-lines while the velocity's deviation grows honestly with the IMU's noise and bias, so
-the first tick with three anchors corrects both.
-
 Secondary anchors (beyond the thesis; Kilobot swarms self-assemble by robots localizing
 from already localized neighbours). An agent whose tick finds fewer than
 ``min_beacons`` beacons, or that is moving (no zero-velocity update since its last tick,
@@ -137,11 +126,6 @@ class LocalizationConfig:
     beacon_variance_inflation: float = tunable(
         4.0, "Factor on a beacon's advertised variance (its error persists 20-40 s)",
         low=1.0, high=100.0, live=True)
-    # One or two anchors whose own errors persist and drift as beacons drive read as the
-    # agent's motion (module docstring, "Fewer than three anchors").
-    lost_position_only: bool = tunable(
-        True, 'Ranges to fewer than min_beacons anchors correct the position, not the '
-        'velocity or bias', live=True)
     secondary_anchors: bool = tunable(
         True, 'Range to parked neighbours localized from beacons when beacons are too few',
         live=True)
@@ -482,9 +466,7 @@ class Localizer:
             cov = range_covariance(linear, at)
         if self.kf.range_nis(beacons, ranges, cov, shift, consider) > _chi2_999(len(linear)):
             return False
-        few = self.config.lost_position_only and len(usable) < self.config.min_beacons
-        self.kf.update_ranges(beacons, ranges, cov, shift, consider=consider,
-                              position_only=few)
+        self.kf.update_ranges(beacons, ranges, cov, shift, consider=consider)
         self.stats['range_updates'] += 1
         if consider is not None:
             self._held(consider[0])
