@@ -152,3 +152,48 @@ def test_a_restarted_mission_node_publishes_the_shape_set_at_run_time_again(tmp_
     shape_new_run, goals_new_run = run('run-b', set_shape=False)
     assert (shape_new_run.version, goals_new_run.version) == (1, 1)
     assert shape_new_run.name == 'circle_314'
+
+
+def test_liveness_heard_before_the_simulated_clock_does_not_lose_every_agent():
+    """A mission node on simulated time that hears mission/alive before its first /clock
+    (a respawned node under load) must not stamp those reports at time 0: when the clock
+    then reads 10 s, every agent would look silent for 10 s (> agent_timeout_s 6 s), be
+    declared lost, be heard again and the shape re-partitioned (goals v2). The goals stay
+    v1 and no agent is lost."""
+    from builtin_interfaces.msg import Time
+    from rosgraph_msgs.msg import Clock
+    from std_msgs.msg import Int32MultiArray
+
+    with ros_context() as (context, executor):
+        mission = MissionNode(context=context, parameter_overrides=_params() + [
+            Parameter('use_sim_time', value=True)])
+        probe = rclpy.create_node('probe', context=context)
+        alive = probe.create_publisher(Int32MultiArray, '/mission/alive',
+                                       QoSProfile(**qos.STATE))
+        clock = probe.create_publisher(Clock, '/clock', 10)
+        goals: list[GoalArray] = []
+        probe.create_subscription(GoalArray, '/swarm/goals', goals.append,
+                                  QoSProfile(**qos.LATCHED))
+        executor.add_node(mission)
+        executor.add_node(probe)
+        agents = sorted(mission.mission.agent_types)
+        try:
+            assert spin_until(executor, lambda: bool(goals), timeout=20.0)
+            # Reports before any clock, delivered to the node.
+            assert spin_until(executor, lambda: alive.get_subscription_count() > 0
+                              and clock.get_subscription_count() > 0, timeout=20.0)
+            for _ in range(5):
+                alive.publish(Int32MultiArray(data=agents))
+                spin_until(executor, lambda: False, timeout=0.1)
+            # The simulator's clock arrives at 10 s and runs on; the agents keep reporting.
+            for k in range(8):
+                clock.publish(Clock(clock=Time(sec=10 + k // 2, nanosec=(k % 2) * 500_000_000)))
+                spin_until(executor, lambda: False, timeout=0.2)
+                alive.publish(Int32MultiArray(data=agents))
+                spin_until(executor, lambda: False, timeout=0.2)
+            assert mission._now() >= 13.0
+        finally:
+            mission.destroy_node()
+            probe.destroy_node()
+    assert not [e for e in mission.mission.events if 'lost' in e], mission.mission.events
+    assert mission.mission.goal_version == 1 and goals[-1].version == 1

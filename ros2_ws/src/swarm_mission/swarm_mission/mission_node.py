@@ -207,6 +207,14 @@ class MissionNode(Node):
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
+    def _clock_running(self) -> bool:
+        """False while a node on simulated time has heard no /clock yet (its clock reads
+        0): liveness stamped then would read as the whole run's silence once the clock
+        jumps to the simulator's time. A respawned mission node under load heard
+        mission/alive before /clock, declared every agent lost, heard them again and
+        re-partitioned (goals v2 instead of the resumed v1)."""
+        return self.get_clock().now().nanoseconds > 0
+
     def _apply(self, shape) -> tuple[bool, str]:
         """Version, partition and publish a shape; return (success, message)."""
         if self.params['decentralized']:
@@ -251,14 +259,19 @@ class MissionNode(Node):
         return response
 
     def _on_state(self, msg: AgentState) -> None:
-        self.mission.agent_seen(int(msg.id), self._now())
+        if self._clock_running():
+            self.mission.agent_seen(int(msg.id), self._now())
 
     def _on_alive(self, msg: Int32MultiArray) -> None:
+        if not self._clock_running():
+            return
         now = self._now()
         for agent in msg.data:
             self.mission.agent_seen(int(agent), now)
 
     def _on_timer(self) -> None:
+        if not self._clock_running():
+            return
         now = self._now()
         if self._start is None:
             self._start = now
