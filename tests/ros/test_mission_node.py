@@ -174,24 +174,29 @@ def test_liveness_heard_before_the_simulated_clock_does_not_lose_every_agent():
         goals: list[GoalArray] = []
         probe.create_subscription(GoalArray, '/swarm/goals', goals.append,
                                   QoSProfile(**qos.LATCHED))
+        heard: list[Int32MultiArray] = []   # the probe's copies: delivered to the node too
+        probe.create_subscription(Int32MultiArray, '/mission/alive', heard.append,
+                                  QoSProfile(**qos.STATE))
         executor.add_node(mission)
         executor.add_node(probe)
         agents = sorted(mission.mission.agent_types)
         try:
             assert spin_until(executor, lambda: bool(goals), timeout=20.0)
             # Reports before any clock, delivered to the node.
-            assert spin_until(executor, lambda: alive.get_subscription_count() > 0
+            assert spin_until(executor, lambda: alive.get_subscription_count() > 1
                               and clock.get_subscription_count() > 0, timeout=20.0)
-            for _ in range(5):
+            for k in range(5):
                 alive.publish(Int32MultiArray(data=agents))
-                spin_until(executor, lambda: False, timeout=0.1)
+                assert spin_until(executor, lambda: len(heard) > k, timeout=20.0)
+            assert mission._now() == 0.0
             # The simulator's clock arrives at 10 s and runs on; the agents keep reporting.
             for k in range(8):
-                clock.publish(Clock(clock=Time(sec=10 + k // 2, nanosec=(k % 2) * 500_000_000)))
-                spin_until(executor, lambda: False, timeout=0.2)
+                now = 10.0 + 0.5 * k
+                clock.publish(Clock(clock=Time(sec=int(now), nanosec=int(now % 1 * 1e9))))
+                assert spin_until(executor, lambda: mission._now() >= now, timeout=20.0)
+                spin_until(executor, lambda: False, timeout=0.1)   # the node's timer
                 alive.publish(Int32MultiArray(data=agents))
-                spin_until(executor, lambda: False, timeout=0.2)
-            assert mission._now() >= 13.0
+                assert spin_until(executor, lambda: len(heard) > 5 + k, timeout=20.0)
         finally:
             mission.destroy_node()
             probe.destroy_node()
