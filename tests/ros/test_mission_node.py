@@ -187,16 +187,16 @@ def test_liveness_heard_before_the_simulated_clock_does_not_lose_every_agent():
                               and clock.get_subscription_count() > 0, timeout=20.0)
             for k in range(5):
                 alive.publish(Int32MultiArray(data=agents))
-                assert spin_until(executor, lambda: len(heard) > k, timeout=20.0)
+                assert spin_until(executor, lambda k=k: len(heard) > k, timeout=20.0)
             assert mission._now() == 0.0
             # The simulator's clock arrives at 10 s and runs on; the agents keep reporting.
             for k in range(8):
                 now = 10.0 + 0.5 * k
                 clock.publish(Clock(clock=Time(sec=int(now), nanosec=int(now % 1 * 1e9))))
-                assert spin_until(executor, lambda: mission._now() >= now, timeout=20.0)
+                assert spin_until(executor, lambda now=now: mission._now() >= now, timeout=20.0)
                 spin_until(executor, lambda: False, timeout=0.1)   # the node's timer
                 alive.publish(Int32MultiArray(data=agents))
-                assert spin_until(executor, lambda: len(heard) > 5 + k, timeout=20.0)
+                assert spin_until(executor, lambda k=k: len(heard) > 5 + k, timeout=20.0)
         finally:
             mission.destroy_node()
             probe.destroy_node()
