@@ -209,10 +209,10 @@ class MissionNode(Node):
 
     def _clock_running(self) -> bool:
         """False while a node on simulated time has heard no /clock yet (its clock reads
-        0): liveness stamped then would read as the whole run's silence once the clock
-        jumps to the simulator's time. A respawned mission node under load heard
-        mission/alive before /clock, declared every agent lost, heard them again and
-        re-partitioned (goals v2 instead of the resumed v1)."""
+        0). Liveness stamped then would read as the whole run's silence once the clock
+        jumps to the simulator's time: a respawned node that hears mission/alive before
+        /clock would declare every agent lost, hear them again and re-partition instead
+        of keeping the goals it resumed."""
         return self.get_clock().now().nanoseconds > 0
 
     def _apply(self, shape) -> tuple[bool, str]:
