@@ -207,13 +207,14 @@ class MissionNode(Node):
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
-    def _clock_running(self) -> bool:
-        """False while a node on simulated time has heard no /clock yet (its clock reads
-        0). Liveness stamped then would read as the whole run's silence once the clock
-        jumps to the simulator's time: a respawned node that hears mission/alive before
-        /clock would declare every agent lost, hear them again and re-partition instead
-        of keeping the goals it resumed."""
-        return self.get_clock().now().nanoseconds > 0
+    def _running_now(self) -> float | None:
+        """The clock's time (s), None while a node on simulated time has heard no /clock
+        yet (its clock reads 0). Liveness stamped then would read as the whole run's
+        silence once the clock jumps to the simulator's time: a respawned node that hears
+        mission/alive before /clock would declare every agent lost, hear them again and
+        re-partition instead of keeping the goals it resumed."""
+        now = self._now()
+        return now if now > 0.0 else None
 
     def _apply(self, shape) -> tuple[bool, str]:
         """Version, partition and publish a shape; return (success, message)."""
@@ -259,20 +260,21 @@ class MissionNode(Node):
         return response
 
     def _on_state(self, msg: AgentState) -> None:
-        if self._clock_running():
-            self.mission.agent_seen(int(msg.id), self._now())
+        now = self._running_now()
+        if now is not None:
+            self.mission.agent_seen(int(msg.id), now)
 
     def _on_alive(self, msg: Int32MultiArray) -> None:
-        if not self._clock_running():
+        now = self._running_now()
+        if now is None:
             return
-        now = self._now()
         for agent in msg.data:
             self.mission.agent_seen(int(agent), now)
 
     def _on_timer(self) -> None:
-        if not self._clock_running():
+        now = self._running_now()
+        if now is None:
             return
-        now = self._now()
         if self._start is None:
             self._start = now
         while (self._next_step < len(self._sequence)
