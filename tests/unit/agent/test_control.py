@@ -11,11 +11,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
 import numpy as np
 import pytest
+import yaml
 
 from swarm_agent.dynamics import PointMassSwarm
 from swarm_agent.forces import ForceParams, formation_force
@@ -27,7 +29,8 @@ from swarm_agent.lqr import (
     step_response,
     VelocityLoop,
 )
-from swarm_agent.setpoint import avoid_collisions, SetpointParams, velocity_setpoint
+from swarm_agent.setpoint import avoid_collisions, GiveWay, SetpointParams, velocity_setpoint
+from swarm_bringup import hil
 from swarm_common.robot_types import GRAVITY, load_robot_types, LqrDesign, RobotType
 
 TYPES = load_robot_types()
@@ -265,51 +268,70 @@ def test_filter_is_the_closest_safe_velocity():
         assert np.sum((got - want) ** 2) <= best.fun + 1e-6
 
 
-def _drive(starts, goals, radii, params, seconds=60.0, dt=0.02):
+def _drive(starts, goals, radii, params, seconds=60.0, dt=0.02, hold=None, delays=None):
     """Kinematic robots under setpoint + filter with exact relative offsets: the
-    smallest gap beyond the summed radii (over every pair), and where they end."""
+    smallest gap beyond the summed radii (over every pair), where they end and the
+    give-ways taken. ``hold`` (hold_radius, resume_radius) parks them as the brain does
+    (a parked robot yields, then returns to its goal); ``delays`` (s) start each later."""
     p = np.array(starts, dtype=float)
     radii = np.asarray(radii, dtype=float)
-    i, j = np.triu_indices(len(p), 1)
+    n = len(p)
+    i, j = np.triu_indices(n, 1)
+    delays = np.zeros(n) if delays is None else np.asarray(delays, dtype=float)
+    give_way = [GiveWay(params) for _ in range(n)]
+    parked, yielding = np.zeros(n, bool), np.zeros(n, bool)
     smallest = np.inf
-    for _ in range(int(seconds / dt)):
+    for step in range(int(seconds / dt)):
+        t = step * dt
         v = np.zeros_like(p)
-        for k in range(len(p)):
-            others = np.arange(len(p)) != k
-            want = velocity_setpoint(p[k], goals[k], params)
-            v[k] = avoid_collisions(want, p[others] - p[k], radii[others], radii[k], params)
+        for k in np.flatnonzero(delays <= t):
+            others = np.arange(n) != k
+            if hold is not None:
+                distance = np.linalg.norm(goals[k] - p[k])
+                parked[k] = distance < hold[0] or (parked[k] and distance < hold[1])
+            want = np.zeros(2) if parked[k] else velocity_setpoint(p[k], goals[k], params)
+            v[k] = avoid_collisions(want, p[others] - p[k], radii[others], radii[k], params,
+                                    parked=parked[k] or give_way[k].active(t))
+            give_way[k].observe(t, want, v[k])
+            if yielding[k] and not v[k].any():
+                yielding[k] = parked[k] = False
+            yielding[k] = parked[k] and v[k].any()
         p = p + dt * v
         gaps = np.linalg.norm(p[i] - p[j], axis=1) - radii[i] - radii[j]
         smallest = min(smallest, float(gaps.min()))
-    return smallest, p
+    return smallest, p, sum(g.count for g in give_way)
 
 
 def test_two_robots_meeting_head_on_pass_each_other_without_touching():
     params = SetpointParams()
-    smallest, end = _drive([[0.0, 0.0], [10.0, 0.0]], [[10.0, 0.0], [0.0, 0.0]],
+    smallest, end, _ = _drive([[0.0, 0.0], [10.0, 0.0]], [[10.0, 0.0], [0.0, 0.0]],
                            [0.5, 0.3], params)
     assert smallest > 0.0                       # coverage circles never overlap
     np.testing.assert_allclose(end, [[10.0, 0.0], [0.0, 0.0]], atol=0.05)
     # Without the swerve they stop in front of each other for good.
-    stuck, end = _drive([[0.0, 0.0], [10.0, 0.0]], [[10.0, 0.0], [0.0, 0.0]],
+    stuck, end, _ = _drive([[0.0, 0.0], [10.0, 0.0]], [[10.0, 0.0], [0.0, 0.0]],
                         [0.5, 0.3], SetpointParams(swerve=0.0))
     assert stuck > 0.0 and end[0, 0] < 5.0
 
 
 def test_a_robot_goes_round_a_parked_one_on_its_path():
     params = SetpointParams()
-    smallest, end = _drive([[0.0, 0.0], [5.0, 0.0]], [[10.0, 0.0], [5.0, 0.0]],
+    smallest, end, _ = _drive([[0.0, 0.0], [5.0, 0.0]], [[10.0, 0.0], [5.0, 0.0]],
                            [0.3, 0.5], params)
     assert smallest > 0.0
     np.testing.assert_allclose(end[0], [10.0, 0.0], atol=0.05)
     assert np.linalg.norm(end[1] - [5.0, 0.0]) < 0.5     # pushed aside a little at most
 
 
-# The arena's setpoint parameters (swarm_bridge config/hw_agent.yaml: 3.5 cm/s, no buffer
-# beyond the covers) and the hw_arrow run of docs/camera.md that stopped short: goals of
-# the arrow partitioned for robots 0-4 (types 1, 2, 2, 3, 3; cover radii of Table 5.1)
-# and where the robots were 14 s after the shape was announced.
-HW = SetpointParams(v_max=0.035, avoid_buffer=0.0, yield_margin=0.03, arrive_radius=0.005)
+# The arena's parameters (swarm_bridge config/hw_agent.yaml: 3.5 cm/s, no buffer beyond
+# the covers, a 3 cm yield margin, give-way after 2 s) and the hw_arrow run of
+# docs/camera.md that stopped short: goals of the arrow partitioned for robots 0-4 (types
+# 1, 2, 2, 3, 3; cover radii of Table 5.1) and where the robots were 14 s after the shape
+# was announced.
+HW_AGENT = yaml.safe_load(hil.bridge_config('hw_agent.yaml').read_text())['/**'][
+    'ros__parameters']
+HW = SetpointParams(**HW_AGENT['setpoint'])
+HW_HOLD = (HW_AGENT['hold_radius'], HW_AGENT['resume_radius'])
 HW_RADII = [0.16, 0.11, 0.11, 0.08, 0.08]
 ARROW_GOALS = np.array([[-0.0684, -0.0011], [0.2752, -0.1622], [0.5185, 0.0],
                         [-0.4474, 0.0124], [0.2752, 0.1622]])
@@ -342,6 +364,61 @@ def test_a_robot_slowing_for_its_goal_is_not_held_by_the_swerve():
     assert np.linalg.norm(avoid_collisions(fast, [[0.19, 0.0]], [0.08], 0.11, HW)) < 1e-12
 
 
+# hw_square through the rendered camera (docs/camera.md, "Robots that hold each other"):
+# goals of the square for robots 0-4, their start poses, when each started moving in the
+# kinematic replay that ends as the camera run did (the order of the first assignments
+# differs from run to run), and where the robots of the camera run were at 20 s.
+SQUARE_GOALS = np.array([[0.0007, 0.0], [0.2392, -0.2392], [-0.2383, -0.2392],
+                         [-0.2383, 0.2392], [0.2392, 0.2392]])
+SQUARE_STARTS = np.array([[-0.55, -0.55], [0.55, -0.55], [0.55, 0.55], [-0.55, 0.55],
+                          [0.0, -0.62]])
+SQUARE_DELAYS = np.array([0.78, 2.1, 2.09, 0.36, 3.93])
+SQUARE_AT_20_S = np.array([[-0.29, -0.29], [0.34, -0.34], [0.36, 0.32], [-0.34, 0.34],
+                           [0.06, -0.40]])
+
+
+def test_a_held_robot_gives_way_after_give_way_after_s():
+    params = SetpointParams(give_way_after_s=2.0, give_way_s=5.0)
+    give_way = GiveWay(params)
+    want = np.array([0.3, 0.0])
+    for t in np.arange(0.0, 2.0, 0.1):                    # sideways only: no progress
+        give_way.observe(t, want, np.array([0.0, 0.4]))
+        assert not give_way.active(t)
+    give_way.observe(2.0, want, np.array([0.07, 0.0]))     # below a quarter, 2 s on
+    assert give_way.active(2.0) and give_way.active(6.99) and give_way.count == 1
+    assert not give_way.ended(6.99) and give_way.ended(7.0) and not give_way.ended(7.1)
+    # Progress of a quarter of the setpoint, or a zero setpoint (parked), is not held.
+    for command, setpoint in (([0.075, 0.0], want), ([0.0, 0.0], [0.0, 0.0])):
+        other = GiveWay(params)
+        for t in np.arange(0.0, 10.0, 0.1):
+            other.observe(t, np.array(setpoint), np.array(command))
+        assert other.count == 0
+    off = GiveWay(SetpointParams())                          # the simulation's default
+    for t in np.arange(0.0, 10.0, 0.1):
+        off.observe(t, want, np.zeros(2))
+    assert off.count == 0 and not off.active(10.0)
+
+
+@pytest.mark.parametrize('starts, delays', [(SQUARE_STARTS, SQUARE_DELAYS),
+                                            (SQUARE_AT_20_S, None)],
+                         ids=['from-the-start', 'from-20-s'])
+def test_robots_that_hold_each_other_round_the_centre_give_way(starts, delays):
+    """hw_square: robot 0 (16 cm) slows for the centre goal while robots 2 and 4 cross
+    the square round it; pressed together, each one's safe directions all point away
+    from its goal, and robots 0, 2 and 4 stood 0.12, 0.44 and 0.52 m from their goals
+    for the last 90 s of the camera run. Giving way (hw_agent.yaml: after 2 s, for 5 s)
+    opens the gap: all five arrive (within 4 cm, the arrival criterion), never closer
+    than one 0.1 s step at v_max."""
+    off = dataclasses.replace(HW, give_way_after_s=0.0)
+    _, stuck, _ = _drive(starts, SQUARE_GOALS, HW_RADII, off, seconds=150.0, dt=0.1,
+                         hold=HW_HOLD, delays=delays)
+    assert np.linalg.norm(stuck - SQUARE_GOALS, axis=1).max() > 0.4
+    smallest, end, give_ways = _drive(starts, SQUARE_GOALS, HW_RADII, HW, seconds=150.0,
+                                      dt=0.1, hold=HW_HOLD, delays=delays)
+    assert give_ways > 0 and smallest > -HW.v_max * 0.1
+    assert np.linalg.norm(end - SQUARE_GOALS, axis=1).max() < 0.04
+
+
 def test_robots_around_a_narrow_gap_do_not_hold_each_other():
     """hw_arrow on the arena from 14 s: robot 4 (8 cm) heads for its goal between robots
     0 and 1 (16 and 11 cm), whose goals leave 11 cm between their covers, less than its
@@ -350,7 +427,7 @@ def test_robots_around_a_narrow_gap_do_not_hold_each_other():
     4 0.32 m short. Turning left there, they pass round it, and all five arrive (within
     4 cm of their goals, the arrival criterion) in 30 s, never closer than one 0.1 s step
     at v_max."""
-    smallest, end = _drive(ARROW_AT_14_S, ARROW_GOALS, HW_RADII, HW, seconds=30.0, dt=0.1)
+    smallest, end, _ = _drive(ARROW_AT_14_S, ARROW_GOALS, HW_RADII, HW, seconds=30.0, dt=0.1)
     assert smallest > -HW.v_max * 0.1
     assert np.linalg.norm(end - ARROW_GOALS, axis=1).max() < 0.04
 
@@ -462,10 +539,7 @@ def test_lqr_report_writes_gains_and_step_plot(tmp_path, capsys):
 
 def test_control_yaml_states_the_setpoint_and_forces_defaults():
     """config/control.yaml documents SetpointParams and ForceParams: keep them equal."""
-    import dataclasses
     import pathlib
-
-    import yaml
 
     path = (pathlib.Path(__file__).resolve().parents[3] / 'ros2_ws' / 'src' / 'swarm_agent'
             / 'config' / 'control.yaml')

@@ -23,7 +23,8 @@ It combines the algorithms of thesis chapter 3 exactly as an agent runs them:
   ``setpoint.avoid_collisions``, recomputed whenever the proximity sensor reports
   (10 Hz) or the outer loop runs. It acts on the neighbours' offsets measured by the
   proximity sensor while they are fresh, and on their broadcast estimates otherwise.
-  A parked robot that a neighbour comes too close to yields, then returns to its goal.
+  A parked robot that a neighbour comes too close to yields, then returns to its goal;
+  a robot held still short of its goal gives way (``setpoint.GiveWay``).
 
 Radio frames are authenticated (``swarm_agent.frame_auth``) when the brain is given a
 ``FrameAuth``: every frame it sends is sealed, every frame it hears is opened first and
@@ -63,7 +64,7 @@ from swarm_agent.mesh_messages import (
     NeighbourInfo,
 )
 from swarm_agent.packet import Kind, Packet
-from swarm_agent.setpoint import avoid_collisions, tracking_lag_s, velocity_setpoint
+from swarm_agent.setpoint import avoid_collisions, GiveWay, tracking_lag_s, velocity_setpoint
 from swarm_common.goals import Goal
 from swarm_common.robot_types import RobotType
 from swarm_common.shapes import Shape
@@ -150,6 +151,7 @@ class AgentBrain:
         self._proximity: tuple[np.ndarray, np.ndarray] | None = None
         self._proximity_at = -math.inf
         self._yielding = False
+        self._give_way = GiveWay(config.setpoint)
         self._force = np.zeros(2)
         self._parked = False
         self._parked_since: float | None = None
@@ -274,16 +276,18 @@ class AgentBrain:
             self._next_outer = _next_tick(self._next_outer, t, self.config.outer_period_s)
             self._outer(t)
         self._outbox.extend(self.router.tick(t))
-        if self._avoid_due:
+        if self._avoid_due or self._give_way.ended(t):
             self._avoid_due = False
             offsets, radii = self._neighbour_offsets(t)
             # A parked robot applies no force and stands (static friction): its own
-            # closing speed is zero, not its velocity estimate's noise.
+            # closing speed is zero, not its velocity estimate's noise. One giving way
+            # keeps the parked robot's margin.
             self._command = avoid_collisions(
                 self._setpoint, offsets, radii, self.robot.coverage_radius,
-                self.config.setpoint, parked=self._parked,
+                self.config.setpoint, parked=self._parked or self._give_way.active(t),
                 own_velocity=None if self._parked else self.localizer.velocity,
                 lag_s=tracking_lag_s(self.robot.fluid_friction, self.loop.gains))
+            self._give_way.observe(t, self._setpoint, self._command)
             self._commanded = bool(self._command[0] or self._command[1])
         commanded = self._commanded
         if self._yielding and not commanded:

@@ -91,6 +91,11 @@ class SetpointParams:
         low=0.0, high=10.0, live=True)
     arrive_radius: float = tunable(0.02, 'Closer than this to the goal the setpoint is zero, m',
                                    low=0.0, high=10.0, live=True)
+    give_way_after_s: float = tunable(
+        0.0, 'A robot held below a quarter of its setpoint this long gives way, s (0: never)',
+        low=0.0, high=600.0, live=True)
+    give_way_s: float = tunable(5.0, 'How long a held robot gives way (keeps yield_margin), s',
+                                low=0.0, high=600.0, live=True)
 
     def __post_init__(self) -> None:
         for name in ('gain', 'v_max', 'avoid_rate'):
@@ -102,6 +107,57 @@ class SetpointParams:
             raise ValueError(f'avoid_buffer and yield_margin must be >= 0 m and swerve in '
                              f'[0, 1], got {self.avoid_buffer}, {self.yield_margin} and '
                              f'{self.swerve}')
+
+
+class GiveWay:
+    """Whether a robot held still by its neighbours short of its goal gives way now.
+
+    Beyond the thesis. The filter is a local rule, and several robots around one gap
+    can hold each other still for good, each one's every safe direction pointing away
+    from its goal: on the arena (hardware parameters: no buffer, goals a few centimetres
+    apart) the big robot slowing for the centre goal of hw_square and the two robots
+    crossing the square round it pressed on one another 0.12-0.5 m from their goals
+    (docs/camera.md, "Robots that hold each other"). A robot whose progress along its
+    setpoint stays below a quarter of the setpoint for ``give_way_after_s`` therefore
+    keeps ``yield_margin`` more from everyone for ``give_way_s``, as a parked robot does:
+    it backs off a few centimetres and opens the gap, while still heading for its goal.
+    Off (``give_way_after_s`` 0) in the simulation, whose ``yield_margin`` is zero.
+    """
+
+    def __init__(self, params: SetpointParams) -> None:
+        self.params = params
+        self._blocked_since: float | None = None
+        self._until = -np.inf
+        self._giving = False
+        self.count = 0                      # give-ways so far
+
+    def active(self, t: float) -> bool:
+        """Giving way at ``t``."""
+        return t < self._until
+
+    def ended(self, t: float) -> bool:
+        """True once, at the first call after a give-way ended (recompute the command)."""
+        if self._giving and not self.active(t):
+            self._giving = False
+            return True
+        return False
+
+    def observe(self, t: float, setpoint, command) -> None:
+        """The command the filter gave at ``t`` for ``setpoint`` (m/s each)."""
+        if self.params.give_way_after_s <= 0.0 or self.active(t):
+            self._blocked_since = None
+            return
+        wanted = float(np.hypot(*setpoint))
+        progress = float(np.dot(command, setpoint)) / wanted if wanted > 0.0 else 0.0
+        if wanted == 0.0 or progress >= 0.25 * wanted:
+            self._blocked_since = None
+        elif self._blocked_since is None:
+            self._blocked_since = t
+        elif t - self._blocked_since >= self.params.give_way_after_s:
+            self._until = t + self.params.give_way_s
+            self._blocked_since = None
+            self._giving = True
+            self.count += 1
 
 
 def _saturate(v: np.ndarray, v_max: float) -> np.ndarray:
