@@ -350,7 +350,8 @@ class AgentBrain:
         return (f'mode {loc.mode.name} at ({loc.position[0]:.2f}, {loc.position[1]:.2f}); '
                 f'fixes {loc.stats}; neighbours {len(self.neighbours)}, beacons heard '
                 f'{beacons}, ranges {len(self._ranges)}; goal {self.goal_id} '
-                f'(v{self.goal_version}, {self.rows_used} rows); mesh {self.stats}; '
+                f'(v{self.goal_version}, {self.rows_used} rows), gave way '
+                f'{self._give_way.count} times; mesh {self.stats}; '
                 f'router {self.router.stats}; rejected frames {self.auth_stats}')
 
     @property
