@@ -381,14 +381,16 @@ def test_a_held_robot_gives_way_after_give_way_after_s():
     params = SetpointParams(give_way_after_s=2.0, give_way_s=5.0)
     give_way = GiveWay(params)
     want = np.array([0.3, 0.0])
-    for t in np.arange(0.0, 2.0, 0.1):                    # sideways only: no progress
-        give_way.observe(t, want, np.array([0.0, 0.4]))
+    for t in np.arange(0.0, 2.0, 0.1):                    # below a quarter of its speed
+        give_way.observe(t, want, np.array([-0.02, 0.07]))
         assert not give_way.active(t)
-    give_way.observe(2.0, want, np.array([0.07, 0.0]))     # below a quarter, 2 s on
+    give_way.observe(2.0, want, np.array([0.07, 0.0]))     # 2 s on
     assert give_way.active(2.0) and give_way.active(6.99) and give_way.count == 1
     assert not give_way.ended(6.99) and give_way.ended(7.0) and not give_way.ended(7.1)
-    # Progress of a quarter of the setpoint, or a zero setpoint (parked), is not held.
-    for command, setpoint in (([0.075, 0.0], want), ([0.0, 0.0], [0.0, 0.0])):
+    # A quarter of the setpoint's speed, sideways too (sliding round a neighbour), or a
+    # zero setpoint (parked) is not held.
+    for command, setpoint in (([0.075, 0.0], want), ([0.0, 0.075], want),
+                              ([0.0, 0.0], [0.0, 0.0])):
         other = GiveWay(params)
         for t in np.arange(0.0, 10.0, 0.1):
             other.observe(t, np.array(setpoint), np.array(command))
@@ -417,6 +419,22 @@ def test_robots_that_hold_each_other_round_the_centre_give_way(starts, delays):
                                       dt=0.1, hold=HW_HOLD, delays=delays)
     assert give_ways > 0 and smallest > -HW.v_max * 0.1
     assert np.linalg.norm(end - SQUARE_GOALS, axis=1).max() < 0.04
+
+
+def test_a_robot_sliding_round_a_parked_one_does_not_give_way():
+    """hw_line at 30 s: robot 1 (11 cm) slides round robot 0, parked at the centre goal,
+    to a goal on its far side, little of its speed along its setpoint. Counted as held
+    (giving way when its progress along the setpoint stayed under a quarter), it gave way
+    16 times, its margin kept it from passing, and it stood 0.6 m short for good; held
+    meaning slow, it passes and all five arrive."""
+    goals = np.array([[0.0, 0.0], [-0.371, 0.019], [-0.739, -0.019], [0.371, -0.019],
+                      [0.739, 0.019]])
+    at_30_s = np.array([[-0.12, -0.09], [0.14, -0.21], [0.02, 0.36], [0.02, 0.14],
+                        [0.44, -0.35]])
+    smallest, end, _ = _drive(at_30_s, goals, HW_RADII, HW, seconds=120.0, dt=0.1,
+                              hold=HW_HOLD)
+    assert smallest > -HW.v_max * 0.1
+    assert np.linalg.norm(end - goals, axis=1).max() < 0.04
 
 
 def test_robots_around_a_narrow_gap_do_not_hold_each_other():

@@ -116,12 +116,15 @@ class GiveWay:
     can hold each other still for good, each one's every safe direction pointing away
     from its goal: on the arena (hardware parameters: no buffer, goals a few centimetres
     apart) the big robot slowing for the centre goal of hw_square and the two robots
-    crossing the square round it pressed on one another 0.12-0.5 m from their goals
-    (docs/camera.md, "Robots that hold each other"). A robot whose progress along its
-    setpoint stays below a quarter of the setpoint for ``give_way_after_s`` therefore
-    keeps ``yield_margin`` more from everyone for ``give_way_s``, as a parked robot does:
-    it backs off a few centimetres and opens the gap, while still heading for its goal.
-    Off (``give_way_after_s`` 0) in the simulation, whose ``yield_margin`` is zero.
+    crossing the square round it pressed on one another 0.12-0.52 m from their goals
+    (docs/camera.md, "Robots that hold each other"). A robot whose commanded speed stays
+    below a quarter of its setpoint's for ``give_way_after_s`` therefore keeps
+    ``yield_margin`` more from everyone for ``give_way_s``, as a parked robot does: it
+    backs off a few centimetres and opens the gap, while still heading for its goal.
+    Held is slow, not slow along the setpoint: a robot sliding round a parked one makes
+    little progress along its setpoint, and giving way there (its own margin growing)
+    kept one from passing robot 0 of hw_line for good. Off (``give_way_after_s`` 0) in
+    the simulation, whose ``yield_margin`` is zero.
     """
 
     def __init__(self, params: SetpointParams) -> None:
@@ -148,8 +151,7 @@ class GiveWay:
             self._blocked_since = None
             return
         wanted = float(np.hypot(*setpoint))
-        progress = float(np.dot(command, setpoint)) / wanted if wanted > 0.0 else 0.0
-        if wanted == 0.0 or progress >= 0.25 * wanted:
+        if wanted == 0.0 or float(np.hypot(*command)) >= 0.25 * wanted:
             self._blocked_since = None
         elif self._blocked_since is None:
             self._blocked_since = t
