@@ -278,7 +278,7 @@ def _drive(starts, goals, radii, params, seconds=60.0, dt=0.02, hold=None, delay
     n = len(p)
     i, j = np.triu_indices(n, 1)
     delays = np.zeros(n) if delays is None else np.asarray(delays, dtype=float)
-    give_way = [GiveWay(params) for _ in range(n)]
+    give_way = [GiveWay(params, r) for r in radii]
     parked, yielding = np.zeros(n, bool), np.zeros(n, bool)
     smallest = np.inf
     for step in range(int(seconds / dt)):
@@ -292,7 +292,7 @@ def _drive(starts, goals, radii, params, seconds=60.0, dt=0.02, hold=None, delay
             want = np.zeros(2) if parked[k] else velocity_setpoint(p[k], goals[k], params)
             v[k] = avoid_collisions(want, p[others] - p[k], radii[others], radii[k], params,
                                     parked=parked[k] or give_way[k].active(t))
-            give_way[k].observe(t, want, v[k])
+            give_way[k].observe(t, want, v[k], np.linalg.norm(goals[k] - p[k]))
             if yielding[k] and not v[k].any():
                 yielding[k] = parked[k] = False
             yielding[k] = parked[k] and v[k].any()
@@ -378,26 +378,29 @@ SQUARE_AT_20_S = np.array([[-0.29, -0.29], [0.34, -0.34], [0.36, 0.32], [-0.34, 
 
 
 def test_a_held_robot_gives_way_after_give_way_after_s():
+    """A robot of radius 0.1 m, 0.15 m from its goal (within two radii), held below a
+    quarter of its setpoint's speed."""
     params = SetpointParams(give_way_after_s=2.0, give_way_s=5.0)
-    give_way = GiveWay(params)
+    give_way = GiveWay(params, 0.1)
     want = np.array([0.3, 0.0])
-    for t in np.arange(0.0, 2.0, 0.1):                    # below a quarter of its speed
-        give_way.observe(t, want, np.array([-0.02, 0.07]))
+    for t in np.arange(0.0, 2.0, 0.1):
+        give_way.observe(t, want, np.array([-0.02, 0.07]), 0.15)
         assert not give_way.active(t)
-    give_way.observe(2.0, want, np.array([0.07, 0.0]))     # 2 s on
+    give_way.observe(2.0, want, np.array([0.07, 0.0]), 0.15)     # 2 s on
     assert give_way.active(2.0) and give_way.active(6.99) and give_way.count == 1
     assert not give_way.ended(6.99) and give_way.ended(7.0) and not give_way.ended(7.1)
-    # A quarter of the setpoint's speed, sideways too (sliding round a neighbour), or a
-    # zero setpoint (parked) is not held.
-    for command, setpoint in (([0.075, 0.0], want), ([0.0, 0.075], want),
-                              ([0.0, 0.0], [0.0, 0.0])):
-        other = GiveWay(params)
+    # A quarter of the setpoint's speed, sideways too (sliding round a neighbour), a
+    # zero setpoint (parked), or two radii or more from the goal (passing): not held.
+    for command, setpoint, to_goal in (([0.075, 0.0], want, 0.15), ([0.0, 0.075], want, 0.15),
+                                       ([0.0, 0.0], [0.0, 0.0], 0.15),
+                                       ([0.0, 0.0], want, 0.2), ([0.0, 0.0], want, math.inf)):
+        other = GiveWay(params, 0.1)
         for t in np.arange(0.0, 10.0, 0.1):
-            other.observe(t, np.array(setpoint), np.array(command))
+            other.observe(t, np.array(setpoint), np.array(command), to_goal)
         assert other.count == 0
-    off = GiveWay(SetpointParams())                          # the simulation's default
+    off = GiveWay(SetpointParams(), 0.1)                     # the simulation's default
     for t in np.arange(0.0, 10.0, 0.1):
-        off.observe(t, want, np.zeros(2))
+        off.observe(t, want, np.zeros(2), 0.15)
     assert off.count == 0 and not off.active(10.0)
 
 

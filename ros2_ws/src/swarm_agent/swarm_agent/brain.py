@@ -151,7 +151,8 @@ class AgentBrain:
         self._proximity: tuple[np.ndarray, np.ndarray] | None = None
         self._proximity_at = -math.inf
         self._yielding = False
-        self._give_way = GiveWay(config.setpoint)
+        self._give_way = GiveWay(config.setpoint, robot.coverage_radius)
+        self._goal_distance = math.inf       # m, at the last outer tick (inf: no goal)
         self._force = np.zeros(2)
         self._parked = False
         self._parked_since: float | None = None
@@ -287,7 +288,7 @@ class AgentBrain:
                 self.config.setpoint, parked=self._parked or self._give_way.active(t),
                 own_velocity=None if self._parked else self.localizer.velocity,
                 lag_s=tracking_lag_s(self.robot.fluid_friction, self.loop.gains))
-            self._give_way.observe(t, self._setpoint, self._command)
+            self._give_way.observe(t, self._setpoint, self._command, self._goal_distance)
             self._commanded = bool(self._command[0] or self._command[1])
         commanded = self._commanded
         if self._yielding and not commanded:
@@ -410,6 +411,7 @@ class AgentBrain:
     def _outer(self, t: float) -> None:
         """The 2 Hz loop: cost report, assignment, setpoint (3.2.2.2, 3.2.4)."""
         self._avoid_due = True
+        self._goal_distance = math.inf
         self._fresh_neighbours(t)
         if (self._parked_since is not None
                 and t - self._parked_since >= self.config.stand_still_after_s):
@@ -443,7 +445,7 @@ class AgentBrain:
             self._park()
             return
         target = np.array([goal.x, goal.y])
-        distance = float(np.hypot(*(target - position)))
+        distance = self._goal_distance = float(np.hypot(*(target - position)))
         # Hysteresis around the goal: do not chase localization noise (the estimate
         # jumps by a few decimetres at every trilateration); park and brake instead. A
         # parked agent moves again when the goal is farther than the resume radius by

@@ -117,18 +117,26 @@ class GiveWay:
     from its goal: on the arena (hardware parameters: no buffer, goals a few centimetres
     apart) the big robot slowing for the centre goal of hw_square and the two robots
     crossing the square round it pressed on one another 0.12-0.52 m from their goals
-    (docs/camera.md, "Robots that hold each other"). A robot whose commanded speed stays
-    below a quarter of its setpoint's for ``give_way_after_s`` therefore keeps
-    ``yield_margin`` more from everyone for ``give_way_s``, as a parked robot does: it
-    backs off a few centimetres and opens the gap, while still heading for its goal.
+    (docs/camera.md, "Robots that hold each other"). A robot within two of its coverage
+    radii of its goal whose commanded speed stays below a quarter of its setpoint's for
+    ``give_way_after_s`` therefore keeps ``yield_margin`` more from everyone for
+    ``give_way_s``, as a parked robot does: it backs off a few centimetres and opens the
+    gap, while still heading for its goal.
+
     Held is slow, not slow along the setpoint: a robot sliding round a parked one makes
     little progress along its setpoint, and giving way there (its own margin growing)
-    kept one from passing robot 0 of hw_line for good. Off (``give_way_after_s`` 0) in
-    the simulation, whose ``yield_margin`` is zero.
+    kept one from passing robot 0 of hw_line for good. Near its goal only: a robot that
+    close to its goal stands where others pass, while one farther out is passing, and
+    the parked robots it presses yield to it anyway; giving way wherever it was held cost
+    the line's kinematic replay 4 % of its median travel (docs/camera.md). Off
+    (``give_way_after_s`` 0) in the simulation, whose ``yield_margin`` is zero.
     """
 
-    def __init__(self, params: SetpointParams) -> None:
+    NEAR_GOAL_RADII = 2.0        # gives way within this many of its radii of the goal
+
+    def __init__(self, params: SetpointParams, radius: float) -> None:
         self.params = params
+        self.near_goal_m = self.NEAR_GOAL_RADII * radius
         self._blocked_since: float | None = None
         self._until = -np.inf
         self._giving = False
@@ -145,13 +153,15 @@ class GiveWay:
             return True
         return False
 
-    def observe(self, t: float, setpoint, command) -> None:
-        """The command the filter gave at ``t`` for ``setpoint`` (m/s each)."""
+    def observe(self, t: float, setpoint, command, to_goal: float) -> None:
+        """The command the filter gave at ``t`` for ``setpoint`` (m/s each), the robot
+        ``to_goal`` m from its goal (inf: none)."""
         if self.params.give_way_after_s <= 0.0 or self.active(t):
             self._blocked_since = None
             return
         wanted = float(np.hypot(*setpoint))
-        if wanted == 0.0 or float(np.hypot(*command)) >= 0.25 * wanted:
+        if (wanted == 0.0 or to_goal >= self.near_goal_m
+                or float(np.hypot(*command)) >= 0.25 * wanted):
             self._blocked_since = None
         elif self._blocked_since is None:
             self._blocked_since = t
