@@ -92,8 +92,8 @@ class SetpointParams:
     arrive_radius: float = tunable(0.02, 'Closer than this to the goal the setpoint is zero, m',
                                    low=0.0, high=10.0, live=True)
     give_way_after_s: float = tunable(
-        0.0, 'A robot held below a quarter of its setpoint this long gives way, s (0: never)',
-        low=0.0, high=600.0, live=True)
+        0.0, 'A robot within two radii of its goal, held below a quarter of its setpoint '
+        'speed this long, gives way, s (0: never)', low=0.0, high=600.0, live=True)
     give_way_s: float = tunable(5.0, 'How long a held robot gives way (keeps yield_margin), s',
                                 low=0.0, high=600.0, live=True)
 
