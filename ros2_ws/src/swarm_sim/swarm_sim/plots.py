@@ -79,17 +79,22 @@ def mesh(path: pathlib.Path, points: np.ndarray, types: Sequence[int],
 
 def localization_error(path: pathlib.Path, times: np.ndarray, errors: np.ndarray,
                        title: str = 'localization error') -> pathlib.Path:
-    """Error norm of every non-beacon agent over time, with the swarm maximum (Figs. 4.4-4.6)."""
+    """Error norm of every non-beacon agent over time, with the swarm maximum (Figs. 4.4-4.6).
+    ``errors`` (samples, agents) may have no agents (every robot a beacon): empty axes."""
     fig, ax = plt.subplots(figsize=(8, 3.5))
-    ax.plot(times, errors, color='0.6', lw=0.4)
-    with warnings.catch_warnings():
-        # Before any agent reports, a row is all NaN: nanmax warns and gives NaN (no line).
-        warnings.simplefilter('ignore', RuntimeWarning)
-        ax.plot(times, np.nanmax(errors, axis=1), color='tab:red', lw=1.2, label='max')
+    errors = np.asarray(errors, dtype=float).reshape(len(times), -1)
+    if errors.shape[1]:
+        ax.plot(times, errors, color='0.6', lw=0.4)
+        with warnings.catch_warnings():
+            # Before any agent reports, a row is all NaN: nanmax warns and gives NaN (no line).
+            warnings.simplefilter('ignore', RuntimeWarning)
+            ax.plot(times, np.nanmax(errors, axis=1), color='tab:red', lw=1.2, label='max')
+        ax.legend()
+    else:
+        title = f'{title}: no agent localizes (every robot is a beacon)'
     ax.set_xlabel('t [s]')
     ax.set_ylabel('|estimate - truth| [m]')
     ax.set_title(title)
-    ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
