@@ -305,19 +305,19 @@ def _drive(starts, goals, radii, params, seconds=60.0, dt=0.02, hold=None, delay
 def test_two_robots_meeting_head_on_pass_each_other_without_touching():
     params = SetpointParams()
     smallest, end, _ = _drive([[0.0, 0.0], [10.0, 0.0]], [[10.0, 0.0], [0.0, 0.0]],
-                           [0.5, 0.3], params)
+                              [0.5, 0.3], params)
     assert smallest > 0.0                       # coverage circles never overlap
     np.testing.assert_allclose(end, [[10.0, 0.0], [0.0, 0.0]], atol=0.05)
     # Without the swerve they stop in front of each other for good.
     stuck, end, _ = _drive([[0.0, 0.0], [10.0, 0.0]], [[10.0, 0.0], [0.0, 0.0]],
-                        [0.5, 0.3], SetpointParams(swerve=0.0))
+                           [0.5, 0.3], SetpointParams(swerve=0.0))
     assert stuck > 0.0 and end[0, 0] < 5.0
 
 
 def test_a_robot_goes_round_a_parked_one_on_its_path():
     params = SetpointParams()
     smallest, end, _ = _drive([[0.0, 0.0], [5.0, 0.0]], [[10.0, 0.0], [5.0, 0.0]],
-                           [0.3, 0.5], params)
+                              [0.3, 0.5], params)
     assert smallest > 0.0
     np.testing.assert_allclose(end[0], [10.0, 0.0], atol=0.05)
     assert np.linalg.norm(end[1] - [5.0, 0.0]) < 0.5     # pushed aside a little at most
