@@ -82,8 +82,7 @@ def localization_error(path: pathlib.Path, times: np.ndarray, errors: np.ndarray
     """Error norm of every non-beacon agent over time, with the swarm maximum (Figs. 4.4-4.6).
     ``errors`` (samples, agents) may have no agents (every robot a beacon): empty axes."""
     fig, ax = plt.subplots(figsize=(8, 3.5))
-    errors = np.asarray(errors, dtype=float).reshape(len(times), -1)
-    if errors.shape[1]:
+    if np.shape(errors)[1]:
         ax.plot(times, errors, color='0.6', lw=0.4)
         with warnings.catch_warnings():
             # Before any agent reports, a row is all NaN: nanmax warns and gives NaN (no line).
