@@ -25,6 +25,8 @@ It combines the algorithms of thesis chapter 3 exactly as an agent runs them:
   proximity sensor while they are fresh, and on their broadcast estimates otherwise.
   A parked robot that a neighbour comes too close to yields, then returns to its goal;
   a robot held still short of its goal gives way (``setpoint.GiveWay``).
+- A body that does not move under a force at its limit (``stall.StallDetector``) takes
+  the zero-velocity update of a parked robot and sidesteps.
 
 Radio frames are authenticated (``swarm_agent.frame_auth``) when the brain is given a
 ``FrameAuth``: every frame it sends is sealed, every frame it hears is opened first and
@@ -65,6 +67,7 @@ from swarm_agent.mesh_messages import (
 )
 from swarm_agent.packet import Kind, Packet
 from swarm_agent.setpoint import avoid_collisions, GiveWay, tracking_lag_s, velocity_setpoint
+from swarm_agent.stall import StallDetector
 from swarm_common.goals import Goal
 from swarm_common.robot_types import RobotType
 from swarm_common.shapes import Shape
@@ -152,6 +155,8 @@ class AgentBrain:
         self._proximity_at = -math.inf
         self._yielding = False
         self._give_way = GiveWay(config.setpoint, robot.coverage_radius)
+        self._stall = StallDetector(u_max, config.stall_window_s, config.stall_accel,
+                                    config.stall_sidestep_s)
         self._goal_distance = math.inf       # m, at the last outer tick (inf: no goal)
         self._force = np.zeros(2)
         self._parked = False
@@ -214,6 +219,10 @@ class AgentBrain:
         if accel.shape != (2,) or not np.all(np.isfinite(accel)):
             return
         self.localizer.predict(t, accel)
+        if self._stall.imu(t, accel - self.localizer.kf.bias):
+            self.localizer.stand_still()
+            self.loop.reset()
+            self._avoid_due = True     # the sidestep turns the setpoint now
 
     def on_gps(self, t: float, position: np.ndarray, std: float) -> None:
         """Absolute position fix; only beacons have one."""
@@ -284,7 +293,7 @@ class AgentBrain:
             # closing speed is zero, not its velocity estimate's noise. One giving way
             # keeps the parked robot's margin.
             self._command = avoid_collisions(
-                self._setpoint, offsets, radii, self.robot.coverage_radius,
+                self._stall.steer(t, self._setpoint), offsets, radii, self.robot.coverage_radius,
                 self.config.setpoint, parked=self._parked or self._give_way.active(t),
                 own_velocity=None if self._parked else self.localizer.velocity,
                 lag_s=tracking_lag_s(self.robot.fluid_friction, self.loop.gains))
@@ -305,6 +314,7 @@ class AgentBrain:
             self._parked_since = None
             if dt > 0.0:
                 self._force = self.loop.step(dt, self._command, self.localizer.velocity)
+        self._stall.force(t, self._force)
         packets, self._outbox = self._outbox, []
         if self.auth is not None and packets:
             seal = self.auth.seal
@@ -352,8 +362,9 @@ class AgentBrain:
                 f'fixes {loc.stats}; neighbours {len(self.neighbours)}, beacons heard '
                 f'{beacons}, ranges {len(self._ranges)}; goal {self.goal_id} '
                 f'(v{self.goal_version}, {self.rows_used} rows), gave way '
-                f'{self._give_way.count} times; mesh {self.stats}; '
-                f'router {self.router.stats}; rejected frames {self.auth_stats}')
+                f'{self._give_way.count} times, stalled {self._stall.count} times; '
+                f'mesh {self.stats}; router {self.router.stats}; '
+                f'rejected frames {self.auth_stats}')
 
     @property
     def auth_stats(self) -> dict[str, int]:

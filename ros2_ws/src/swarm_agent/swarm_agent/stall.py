@@ -1,0 +1,100 @@
+"""A robot that pushes and does not move: stall detection (beyond the thesis).
+
+Between fixes the agent dead-reckons with its accelerometer (eq. 3.30). A body that
+runs into something it cannot push away (the workspace wall, a robot pushing back, a
+snag) decelerates, and the filter integrates the stop; from then on the accelerometer
+reads only its bias and noise. Nothing in the filter says the body now stands, and
+without fixes the bias is not observable, so the velocity estimate runs off by the bias
+times the time: a type-1 robot held against the boundary wall at its force limit in
+pybullet dead-reckoned itself 0.15 m/s off after 150 s and 26 m off after 300 s, and
+the robot kept pushing towards where it believed its goal was.
+
+Physics tells the two apart. A free robot pushed at its force limit ``u_limit``
+(``agent_factory``: eq. 3.111's u_max plus twice the Coulomb friction) accelerates at
+``(u_limit - mu_1 m g - m g sin(slope) - mu_2 v) / m`` along the force: 2.8 to 4.5
+m/s^2 for the types of Table 4.1 on the terrain's steepest slope (7 deg, see
+``swarm_sim.terrain``); and any motion across the force, which nothing drives, is
+braked by dry friction at mu_1 g cos(slope) - g sin(slope), 0.6 m/s^2 or more. So a
+force held within ``SATURATED`` of the limit for ``window_s`` while the mean of the
+accelerometer's readings (its estimated bias removed) stays under ``accel`` in
+magnitude is a body that stands. The brain then applies a parked robot's zero-velocity
+update (``Localizer.stand_still``), which stops the estimate running and lets the
+filter learn the bias, clears the velocity loop's integral (wound up against the
+obstacle) and sidesteps: for ``sidestep_s`` its setpoint turns 90 degrees
+counter-clockwise, always the same way, so two robots pushing into each other head-on
+pass each other and a robot at a wall slides along it.
+
+A robot with no accelerometer (the hardware agent: its poses come from the camera)
+never calls ``imu`` and never stalls.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+SATURATED = 0.95   # a force at least this share of the limit is at the limit
+
+
+class StallDetector:
+    """Judges, once per ``window_s`` of force at its limit, whether the body stands."""
+
+    def __init__(self, force_limit: float | None, window_s: float, accel: float,
+                 sidestep_s: float) -> None:
+        """``force_limit`` (N; None or ``window_s`` 0: off), ``accel`` (m/s^2) the mean
+        acceleration along the force under which the body counts as blocked."""
+        self.enabled = force_limit is not None and window_s > 0.0
+        self.threshold = SATURATED * (force_limit or 0.0)
+        self.window_s = window_s
+        self.accel = accel
+        self.sidestep_s = sidestep_s
+        self.count = 0                          # stalls (blocked after moving freely)
+        self._since: float | None = None        # start of the window being judged
+        self._sum = np.zeros(2)                 # of the readings in the window
+        self._samples = 0
+        self._blocked = False                   # the last judgement
+        self._sidestep_until = -math.inf
+
+    def force(self, t: float, force: np.ndarray) -> None:
+        """The force commanded at ``t`` (N, map frame), every control step."""
+        if not self.enabled:
+            return
+        norm = math.hypot(float(force[0]), float(force[1]))
+        if norm < self.threshold:
+            self._since = None
+            self._sum, self._samples = np.zeros(2), 0
+            self._blocked = False
+        elif self._since is None:
+            self._since = t
+
+    def imu(self, t: float, accel: np.ndarray) -> bool:
+        """One accelerometer sample at ``t`` (m/s^2, map frame, bias removed). True when
+        it ends a window at the force limit that the body did not move in: the caller
+        applies its zero-velocity update and clears its velocity loop's integral."""
+        if self._since is None:
+            return False
+        self._sum += accel
+        self._samples += 1
+        if t - self._since < self.window_s:
+            return False
+        mean = self._sum / self._samples
+        blocked = math.hypot(float(mean[0]), float(mean[1])) < self.accel
+        if blocked and not self._blocked:
+            self.count += 1
+        if blocked:
+            self._sidestep_until = t + self.sidestep_s
+        self._blocked = blocked
+        self._since = t
+        self._sum, self._samples = np.zeros(2), 0
+        return blocked
+
+    def sidestepping(self, t: float) -> bool:
+        """Whether the setpoint is turned aside at ``t``."""
+        return t < self._sidestep_until
+
+    def steer(self, t: float, setpoint: np.ndarray) -> np.ndarray:
+        """``setpoint`` turned 90 degrees counter-clockwise while sidestepping."""
+        if not self.sidestepping(t):
+            return setpoint
+        return np.array([-setpoint[1], setpoint[0]])
