@@ -9,15 +9,18 @@ import pytest
 from shapely.geometry import box
 
 from swarm_agent.agent_factory import make_brain
+from swarm_agent.brain_config import BrainConfig
 from swarm_agent.stall import SATURATED, StallDetector
 from swarm_common.fleet import RobotSpec
 from swarm_common.goals import Goal
+from swarm_common.parameters import set_live
 from swarm_common.robot_types import GRAVITY, load_robot_types
 from swarm_common.shapes import Shape
 
 TYPES = load_robot_types()
 LIMIT = 6.3          # N, a type-1 robot's force limit (agent_factory: 3 + 2 mu_1 m g)
 IMU_DT = 0.1         # s, the simulated accelerometer's period (10 Hz)
+PARAMS = BrainConfig(agent_id=0, agent_type=1)   # 1 s window, 0.5 m/s^2, 2 s aside
 
 
 def _judge(detector: StallDetector, readings, force=(LIMIT, 0.0), t0=0.0):
@@ -49,7 +52,7 @@ def test_the_threshold_lies_below_every_free_robots_acceleration():
 
 def test_a_second_at_the_limit_without_acceleration_is_a_stand():
     rng = np.random.default_rng(0)
-    detector = StallDetector(LIMIT, window_s=1.0, accel=0.5, sidestep_s=2.0)
+    detector = StallDetector(LIMIT, PARAMS)
     noise = rng.normal(0.0, 0.01, (12, 2)) + 0.001      # accelerometer noise and bias
     judged = _judge(detector, noise)
     # The window opened at the first control step (0.02 s) closes with the first sample
@@ -61,7 +64,7 @@ def test_a_second_at_the_limit_without_acceleration_is_a_stand():
 
 
 def test_a_free_robot_at_the_limit_is_not_judged_standing():
-    detector = StallDetector(LIMIT, window_s=1.0, accel=0.5, sidestep_s=2.0)
+    detector = StallDetector(LIMIT, PARAMS)
     weakest = min(_free_acceleration(k) for k in TYPES)
     assert not any(_judge(detector, [[weakest, 0.0]] * 30))
     # Braking sideways: motion across the force decelerates at mu_1 g cos - g sin.
@@ -71,11 +74,22 @@ def test_a_free_robot_at_the_limit_is_not_judged_standing():
 
 
 def test_a_force_under_the_limit_is_never_judged():
-    detector = StallDetector(LIMIT, window_s=1.0, accel=0.5, sidestep_s=2.0)
+    detector = StallDetector(LIMIT, PARAMS)
     below = (0.99 * SATURATED * LIMIT, 0.0)
     assert not any(_judge(detector, [[0.0, 0.0]] * 30, force=below))
-    off = StallDetector(None, window_s=1.0, accel=0.5, sidestep_s=2.0)
+    off = StallDetector(None, PARAMS)
     assert not any(_judge(off, [[0.0, 0.0]] * 30))
+
+
+def test_the_window_is_a_live_parameter():
+    config = BrainConfig(agent_id=0, agent_type=1)
+    assert (config.stall_window_s, config.stall_accel, config.stall_sidestep_s) == \
+        (1.0, 0.5, 2.0)
+    detector = StallDetector(LIMIT, config)
+    set_live(config, 'stall_window_s', 0.0)             # off while the agent runs
+    assert not any(_judge(detector, [[0.0, 0.0]] * 30))
+    set_live(config, 'stall_window_s', 2.0)
+    assert _judge(detector, [[0.0, 0.0]] * 30, t0=3.0).index(True) == 20
 
 
 def _drive_to_the_wall(type_id: int, seconds: float, window_s: float, goal_x: float):

@@ -155,8 +155,7 @@ class AgentBrain:
         self._proximity_at = -math.inf
         self._yielding = False
         self._give_way = GiveWay(config.setpoint, robot.coverage_radius)
-        self._stall = StallDetector(u_max, config.stall_window_s, config.stall_accel,
-                                    config.stall_sidestep_s)
+        self._stall = StallDetector(u_max, config)
         self._goal_distance = math.inf       # m, at the last outer tick (inf: no goal)
         self._force = np.zeros(2)
         self._parked = False

@@ -6,7 +6,7 @@ snag) decelerates, and the filter integrates the stop; from then on the accelero
 reads only its bias and noise. Nothing in the filter says the body now stands, and
 without fixes the bias is not observable, so the velocity estimate runs off by the bias
 times the time: a type-1 robot held against the boundary wall at its force limit in
-pybullet dead-reckoned itself 0.15 m/s off after 150 s and 26 m off after 300 s, and
+pybullet dead-reckoned itself 0.15 m/s off after 150 s and 33 m off after 300 s, and
 the robot kept pushing towards where it believed its goal was.
 
 Physics tells the two apart. A free robot pushed at its force limit ``u_limit``
@@ -15,12 +15,12 @@ Physics tells the two apart. A free robot pushed at its force limit ``u_limit``
 m/s^2 for the types of Table 4.1 on the terrain's steepest slope (7 deg, see
 ``swarm_sim.terrain``); and any motion across the force, which nothing drives, is
 braked by dry friction at mu_1 g cos(slope) - g sin(slope), 0.6 m/s^2 or more. So a
-force held within ``SATURATED`` of the limit for ``window_s`` while the mean of the
-accelerometer's readings (its estimated bias removed) stays under ``accel`` in
-magnitude is a body that stands. The brain then applies a parked robot's zero-velocity
-update (``Localizer.stand_still``), which stops the estimate running and lets the
-filter learn the bias, clears the velocity loop's integral (wound up against the
-obstacle) and sidesteps: for ``sidestep_s`` its setpoint turns 90 degrees
+force held within ``SATURATED`` of the limit for ``stall_window_s`` while the mean of
+the accelerometer's readings (its estimated bias removed) stays under ``stall_accel``
+in magnitude is a body that stands. The brain then applies a parked robot's
+zero-velocity update (``Localizer.stand_still``), which stops the estimate running and
+lets the filter learn the bias, clears the velocity loop's integral (wound up against
+the obstacle) and sidesteps: for ``stall_sidestep_s`` its setpoint turns 90 degrees
 counter-clockwise, always the same way, so two robots pushing into each other head-on
 pass each other and a robot at a wall slides along it.
 
@@ -31,24 +31,29 @@ never calls ``imu`` and never stalls.
 from __future__ import annotations
 
 import math
+from typing import Protocol
 
 import numpy as np
 
 SATURATED = 0.95   # a force at least this share of the limit is at the limit
 
 
-class StallDetector:
-    """Judges, once per ``window_s`` of force at its limit, whether the body stands."""
+class StallParams(Protocol):
+    """The brain's stall parameters (``BrainConfig``; live: read at every use)."""
 
-    def __init__(self, force_limit: float | None, window_s: float, accel: float,
-                 sidestep_s: float) -> None:
-        """``force_limit`` (N; None or ``window_s`` 0: off), ``accel`` (m/s^2) the mean
-        acceleration along the force under which the body counts as blocked."""
-        self.enabled = force_limit is not None and window_s > 0.0
-        self.threshold = SATURATED * (force_limit or 0.0)
-        self.window_s = window_s
-        self.accel = accel
-        self.sidestep_s = sidestep_s
+    stall_window_s: float    # s, 0: off
+    stall_accel: float       # m/s^2
+    stall_sidestep_s: float  # s
+
+
+class StallDetector:
+    """Judges, once per ``stall_window_s`` of force at its limit, whether the body
+    stands."""
+
+    def __init__(self, force_limit: float | None, params: StallParams) -> None:
+        """``force_limit`` (N; None: off)."""
+        self.threshold = SATURATED * force_limit if force_limit is not None else math.inf
+        self.params = params
         self.count = 0                          # stalls (blocked after moving freely)
         self._since: float | None = None        # start of the window being judged
         self._sum = np.zeros(2)                 # of the readings in the window
@@ -58,10 +63,8 @@ class StallDetector:
 
     def force(self, t: float, force: np.ndarray) -> None:
         """The force commanded at ``t`` (N, map frame), every control step."""
-        if not self.enabled:
-            return
         norm = math.hypot(float(force[0]), float(force[1]))
-        if norm < self.threshold:
+        if norm < self.threshold or self.params.stall_window_s <= 0.0:
             self._since = None
             self._sum, self._samples = np.zeros(2), 0
             self._blocked = False
@@ -76,14 +79,14 @@ class StallDetector:
             return False
         self._sum += accel
         self._samples += 1
-        if t - self._since < self.window_s:
+        if t - self._since < self.params.stall_window_s:
             return False
         mean = self._sum / self._samples
-        blocked = math.hypot(float(mean[0]), float(mean[1])) < self.accel
+        blocked = math.hypot(float(mean[0]), float(mean[1])) < self.params.stall_accel
         if blocked and not self._blocked:
             self.count += 1
         if blocked:
-            self._sidestep_until = t + self.sidestep_s
+            self._sidestep_until = t + self.params.stall_sidestep_s
         self._blocked = blocked
         self._since = t
         self._sum, self._samples = np.zeros(2), 0
