@@ -219,9 +219,11 @@ class AgentBrain:
             return
         self.localizer.predict(t, accel)
         if self._stall.imu(t, accel - self.localizer.kf.bias):
-            self.localizer.stand_still()
-            self.loop.reset()
-            self._avoid_due = True     # the sidestep turns the setpoint now
+            taken = self.localizer.stood_still()
+            self._stall.stands(t, taken)
+            if taken:
+                self.loop.reset()
+                self._avoid_due = True     # the sidestep turns the setpoint now
 
     def on_gps(self, t: float, position: np.ndarray, std: float) -> None:
         """Absolute position fix; only beacons have one."""

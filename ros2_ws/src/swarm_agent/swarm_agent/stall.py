@@ -9,20 +9,26 @@ times the time: a type-1 robot held against the boundary wall at its force limit
 pybullet dead-reckoned itself 0.15 m/s off after 150 s and 33 m off after 300 s, and
 the robot kept pushing towards where it believed its goal was.
 
-Physics tells the two apart. A free robot pushed at its force limit ``u_limit``
-(``agent_factory``: eq. 3.111's u_max plus twice the Coulomb friction) accelerates at
-``(u_limit - mu_1 m g - m g sin(slope) - mu_2 v) / m`` along the force: 2.8 to 4.5
-m/s^2 for the types of Table 4.1 on the terrain's steepest slope (7 deg, see
-``swarm_sim.terrain``); and any motion across the force, which nothing drives, is
-braked by dry friction at mu_1 g cos(slope) - g sin(slope), 0.6 m/s^2 or more. So a
-force held within ``SATURATED`` of the limit for ``stall_window_s`` while the mean of
-the accelerometer's readings (its estimated bias removed) stays under ``stall_accel``
-in magnitude is a body that stands. The brain then applies a parked robot's
-zero-velocity update (``Localizer.stand_still``), which stops the estimate running and
-lets the filter learn the bias, clears the velocity loop's integral (wound up against
-the obstacle) and sidesteps: for ``stall_sidestep_s`` its setpoint turns 90 degrees
-counter-clockwise, always the same way, so two robots pushing into each other head-on
-pass each other and a robot at a wall slides along it.
+Physics tells the two apart, with the filter's help. A free robot pushed at its force
+limit ``u_limit`` (``agent_factory``: eq. 3.111's u_max plus twice the Coulomb
+friction) accelerates at ``(u_limit - mu_1 m g - m g sin(slope) - mu_2 v) / m`` along
+the force: 2.8 to 4.5 m/s^2 for the types of Table 4.1 on the terrain's steepest slope
+(7 deg, see ``swarm_sim.terrain``); and any motion across the force, which nothing
+drives, is braked by dry friction at mu_1 g cos(slope) - g sin(slope), 0.6 m/s^2 or
+more. So a force held within ``SATURATED`` of the limit for ``stall_window_s`` while
+the mean of the accelerometer's readings (its estimated bias removed) stays under
+``stall_accel`` in magnitude is a body held by something. Held is not yet standing: a
+robot crawling over a snag of the terrain at 0.3-0.5 m/s under its full force reads the
+same (the one-hour soak, agent 13 at (35.1, 29) m). What tells them apart is the stop:
+a body that stopped decelerated first, and the filter integrated that, so its velocity
+estimate is near zero; a crawling one still holds its speed. The brain therefore asks
+its filter (``Localizer.stood_still``: the zero-velocity update only within the
+innovation gate), and only if it agrees the robot counts as stalled: the update stops
+the estimate running and lets the filter learn the bias, the velocity loop's integral
+(wound up against the obstacle) is cleared, and the robot sidesteps: for
+``stall_sidestep_s`` its setpoint turns 90 degrees counter-clockwise, always the same
+way, so two robots pushing into each other head-on pass each other and a robot at a
+wall slides along it.
 
 A robot with no accelerometer (the hardware agent: its poses come from the camera)
 never calls ``imu`` and never stalls.
@@ -58,7 +64,7 @@ class StallDetector:
         self._since: float | None = None        # start of the window being judged
         self._sum = np.zeros(2)                 # of the readings in the window
         self._samples = 0
-        self._blocked = False                   # the last judgement
+        self._stood = False                     # the last judgement, as taken
         self._sidestep_until = -math.inf
 
     def force(self, t: float, force: np.ndarray) -> None:
@@ -67,14 +73,14 @@ class StallDetector:
         if norm < self.threshold or self.params.stall_window_s <= 0.0:
             self._since = None
             self._sum, self._samples = np.zeros(2), 0
-            self._blocked = False
+            self._stood = False
         elif self._since is None:
             self._since = t
 
     def imu(self, t: float, accel: np.ndarray) -> bool:
         """One accelerometer sample at ``t`` (m/s^2, map frame, bias removed). True when
-        it ends a window at the force limit that the body did not move in: the caller
-        applies its zero-velocity update and clears its velocity loop's integral."""
+        it ends a window at the force limit that the body did not accelerate in: the
+        caller checks its filter agrees and says so with ``stands``."""
         if self._since is None:
             return False
         self._sum += accel
@@ -82,15 +88,22 @@ class StallDetector:
         if t - self._since < self.params.stall_window_s:
             return False
         mean = self._sum / self._samples
-        blocked = math.hypot(float(mean[0]), float(mean[1])) < self.params.stall_accel
-        if blocked and not self._blocked:
-            self.count += 1
-        if blocked:
-            self._sidestep_until = t + self.params.stall_sidestep_s
-        self._blocked = blocked
+        standing = math.hypot(float(mean[0]), float(mean[1])) < self.params.stall_accel
+        self._stood = self._stood and standing
         self._since = t
         self._sum, self._samples = np.zeros(2), 0
-        return blocked
+        return standing
+
+    def stands(self, t: float, taken: bool) -> None:
+        """What the caller made of a judgement of standing at ``t``: ``taken`` if its
+        filter agreed and took the zero-velocity update (a stall, counted once per
+        stretch, and a sidestep); not taken when the filter still holds a speed (the
+        body crawls against a resistance)."""
+        if taken:
+            if not self._stood:
+                self.count += 1
+            self._sidestep_until = t + self.params.stall_sidestep_s
+        self._stood = taken
 
     def sidestepping(self, t: float) -> bool:
         """Whether the setpoint is turned aside at ``t``."""
