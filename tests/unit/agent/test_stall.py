@@ -102,8 +102,8 @@ def test_the_window_is_a_live_parameter():
     assert _judge(detector, [[0.0, 0.0]] * 30, t0=3.0).index(True) == 20
 
 
-def test_a_crawling_body_is_not_taken_for_a_standing_one():
-    """The soak's agent 13 crawled over a snag at 0.3-0.5 m/s under its full force,
+def test_a_sliding_body_is_not_taken_for_a_standing_one():
+    """The soak's agent 13 slid along an obstacle's face at 0.3-0.5 m/s under its full force,
     20 s after its last fix: its accelerometer read like a stand, its filter held the
     speed. Forced to zero, the velocity drags the position back along the 20 s it was
     correlated over (the soak: 9.3 m); the gated update refuses, and takes a stop."""

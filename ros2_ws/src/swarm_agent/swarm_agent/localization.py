@@ -332,11 +332,11 @@ class Localizer:
     def stood_still(self) -> bool:
         """Zero-velocity update of a body judged standing from its accelerometer alone
         (``swarm_agent.stall``), taken only if the filter's velocity agrees: its squared
-        Mahalanobis distance from zero within ``gate``. A body that crawls against a
-        resistance at constant speed reads as one that stands; its filter has integrated
+        Mahalanobis distance from zero within ``gate``. A body that slides along an
+        obstacle at constant speed reads as one that stands; its filter has integrated
         no stop and still holds that speed, and forcing it to zero would also move the
         position back along the whole stretch the velocity was correlated over (a
-        robot crawling at 0.45 m/s after 20 s without a fix: 9 m). True if taken."""
+        robot sliding at 0.45 m/s after 20 s without a fix: 9 m). True if taken."""
         std = self.config.zero_velocity_std
         v, p_vv = self.kf.x[2:4], self.kf.P[2:4, 2:4] + np.eye(2) * std ** 2
         if float(v @ np.linalg.solve(p_vv, v)) > self.config.gate:

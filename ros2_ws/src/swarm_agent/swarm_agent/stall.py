@@ -1,8 +1,8 @@
 """A robot that pushes and does not move: stall detection (beyond the thesis).
 
 Between fixes the agent dead-reckons with its accelerometer (eq. 3.30). A body that
-runs into something it cannot push away (the workspace wall, a robot pushing back, a
-snag) decelerates, and the filter integrates the stop; from then on the accelerometer
+runs into something it cannot push away (the workspace wall, an obstacle, a robot
+pushing back) decelerates, and the filter integrates the stop; from then on the accelerometer
 reads only its bias and noise. Nothing in the filter says the body now stands, and
 without fixes the bias is not observable, so the velocity estimate runs off by the bias
 times the time: a type-1 robot held against the boundary wall at its force limit in
@@ -18,10 +18,11 @@ drives, is braked by dry friction at mu_1 g cos(slope) - g sin(slope), 0.6 m/s^2
 more. So a force held within ``SATURATED`` of the limit for ``stall_window_s`` while
 the mean of the accelerometer's readings (its estimated bias removed) stays under
 ``stall_accel`` in magnitude is a body held by something. Held is not yet standing: a
-robot crawling over a snag of the terrain at 0.3-0.5 m/s under its full force reads the
-same (the one-hour soak, agent 13 at (35.1, 29) m). What tells them apart is the stop:
+robot sliding along an obstacle's face at 0.3-0.5 m/s, its full force pushing partly
+into it, reads the same (the one-hour soak: agent 13, 1.3 m off in its dead reckoning,
+along the east face of thesis_shape_1's obstacle at x = 35 m). What tells them apart is the stop:
 a body that stopped decelerated first, and the filter integrated that, so its velocity
-estimate is near zero; a crawling one still holds its speed. The brain therefore asks
+estimate is near zero; a sliding one still holds its speed. The brain therefore asks
 its filter (``Localizer.stood_still``: the zero-velocity update only within the
 innovation gate), and only if it agrees the robot counts as stalled: the update stops
 the estimate running and lets the filter learn the bias, the velocity loop's integral
@@ -98,7 +99,7 @@ class StallDetector:
         """What the caller made of a judgement of standing at ``t``: ``taken`` if its
         filter agreed and took the zero-velocity update (a stall, counted once per
         stretch, and a sidestep); not taken when the filter still holds a speed (the
-        body crawls against a resistance)."""
+        body slides along an obstacle)."""
         if taken:
             if not self._stood:
                 self.count += 1
