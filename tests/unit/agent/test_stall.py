@@ -128,25 +128,28 @@ def test_a_sliding_body_is_not_taken_for_a_standing_one():
     assert np.hypot(*loc.velocity) < 0.01
 
 
-def _drive_to_the_wall(type_id: int, seconds: float, window_s: float, goal_x: float):
-    """One robot deployed at (44, 0) with no beacon to fix on, its goal at ``goal_x``
-    (58: beyond the workspace wall at 50 m); the brain and the world of sim_node.
-    Returns (true position, brain) at the end."""
+def _drive(type_id: int, seconds: float, goal, *, start=(44.0, 0.0), region=None,
+           settings=None):
+    """One robot deployed at ``start`` with no beacon to fix on, its goal at ``goal``
+    (by default in a 6 m square ``region`` round it), in the pybullet world of sim_node
+    with its 50 m walls. Returns (the true position every second, brain)."""
     pytest.importorskip('pybullet')
     from swarm_sim.world import PybulletBackend
     from swarm_sim.world_model import World, WorldConfig
 
-    fleet = [RobotSpec(id=0, type=type_id, is_beacon=False, x=44.0, y=0.0, yaw=0.0)]
+    fleet = [RobotSpec(id=0, type=type_id, is_beacon=False, x=start[0], y=start[1], yaw=0.0)]
     backend = PybulletBackend(fleet, TYPES, seed=0)
     world = World(fleet, TYPES, backend, WorldConfig(), np.random.default_rng(3))
     try:
-        brain = make_brain(agent_id=0, agent_type=type_id, initial_position=(44.0, 0.0),
-                           initial_position_std=0.3,
-                           settings={'stall_window_s': window_s})
+        brain = make_brain(agent_id=0, agent_type=type_id, initial_position=start,
+                           initial_position_std=0.3, settings=settings)
         radius = TYPES[type_id].coverage_radius
-        brain.set_shape(Shape('beyond', box(goal_x - 3.0, -3.0, goal_x + 3.0, 3.0)), 1)
-        brain.set_goals([Goal(0, type_id, goal_x, 0.0, radius)], 1)
+        if region is None:
+            region = box(goal[0] - 3.0, goal[1] - 3.0, goal[0] + 3.0, goal[1] + 3.0)
+        brain.set_shape(Shape('target', region), 1)
+        brain.set_goals([Goal(0, type_id, goal[0], goal[1], radius)], 1)
         steps = int(round(0.02 / world.dt))
+        track = [backend.positions()[0].copy()]
         while world.t < seconds:
             world.command([brain.step(world.t).force])
             world.force_time[:] = world.t
@@ -155,9 +158,19 @@ def _drive_to_the_wall(type_id: int, seconds: float, window_s: float, goal_x: fl
                 readings = world.sense()
                 if readings.imu is not None:
                     brain.on_imu(world.t, readings.imu[0])
-        return backend.positions()[0].copy(), brain
+            if world.t >= len(track) - 1e-9:
+                track.append(backend.positions()[0].copy())
+        return np.array(track), brain
     finally:
         world.close()
+
+
+def _drive_to_the_wall(type_id: int, seconds: float, window_s: float, goal_x: float):
+    """From (44, 0) towards ``goal_x`` on the x axis (58: beyond the workspace wall at
+    50 m). Returns (true position at the end, brain)."""
+    track, brain = _drive(type_id, seconds, (goal_x, 0.0),
+                          settings={'stall_window_s': window_s})
+    return track[-1], brain
 
 
 @pytest.mark.parametrize('type_id', [1, 3])
@@ -180,3 +193,21 @@ def test_a_free_robot_never_stalls():
     truth, brain = _drive_to_the_wall(1, 60.0, 1.0, 30.0)
     assert brain._stall.count == 0
     assert np.hypot(truth[0] - 30.0, truth[1]) < brain.config.hold_radius + 0.2
+
+
+def test_a_robot_sent_home_waits_there_parked():
+    """3.1.3 (thesis rule, ``home_position_std`` 0): three missed ticks send the LOST
+    robot towards the shape's centre. There it parks: zero force, held by dry friction,
+    its zero-velocity updates keeping the estimate where the body is. Holding a zero
+    setpoint instead servoed on a velocity estimate carrying the unobserved
+    accelerometer bias, and the body crept off at bias x time while the estimate stood
+    (here: 7.2 m from where it arrived, at 0.15 m/s by the end)."""
+    track, brain = _drive(1, 120.0, (-4.0, 0.0), start=(10.0, 0.0),
+                          region=box(-5.0, -5.0, 5.0, 5.0),
+                          settings={'localization.home_position_std': 0.0})
+    assert brain.localizer.mode.name == 'RETURN_HOME' and brain._parked
+    arrived = int(np.argmax(np.hypot(track[:, 0], track[:, 1]) < 1.0))
+    assert 0 < arrived < 60                            # home within a minute
+    # Parked from two seconds after arriving to the end (a minute or more): standing.
+    assert np.max(np.hypot(*(track[arrived + 2:] - track[-1]).T)) < 0.05
+    assert np.hypot(*(brain.localizer.position - track[-1])) < 1.0

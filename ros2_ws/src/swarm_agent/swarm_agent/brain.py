@@ -434,8 +434,17 @@ class AgentBrain:
             self._setpoint = np.zeros(2)
             return
         if mode == Mode.RETURN_HOME:
-            # 3.1.3: head for the centre of the formation to meet beacons again.
+            # 3.1.3: head for the centre of the formation to meet beacons again, and
+            # wait there parked. Holding a zero setpoint instead would servo on a
+            # velocity estimate that carries the unobserved accelerometer bias: the body
+            # drifts off at bias x time (0.1 m/s after a minute) while the estimate stands.
             target = np.asarray(self.localizer.home, dtype=float)
+            distance = float(np.hypot(*(target - position)))
+            if distance < self.config.hold_radius or (
+                    self._parked and distance < self.config.resume_radius):
+                self._parked_goal = (-1, -1)
+                self._park()
+                return
             self._parked = False
             self._setpoint = self._setpoint_towards(target)
             return
