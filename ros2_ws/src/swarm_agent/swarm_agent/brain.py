@@ -25,8 +25,9 @@ It combines the algorithms of thesis chapter 3 exactly as an agent runs them:
   proximity sensor while they are fresh, and on their broadcast estimates otherwise.
   A parked robot that a neighbour comes too close to yields, then returns to its goal;
   a robot held still short of its goal gives way (``setpoint.GiveWay``).
-- A body that does not move under a force at its limit (``stall.StallDetector``) takes
-  the zero-velocity update of a parked robot and sidesteps.
+- A body that does not accelerate under a force at its limit (``stall.StallDetector``)
+  takes the zero-velocity update of a parked robot if its filter agrees that it stands
+  (``Localizer.stood_still``), and sidesteps.
 
 Radio frames are authenticated (``swarm_agent.frame_auth``) when the brain is given a
 ``FrameAuth``: every frame it sends is sealed, every frame it hears is opened first and

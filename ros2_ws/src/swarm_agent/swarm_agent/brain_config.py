@@ -60,13 +60,13 @@ class BrainConfig:
         2.0, 'A parked robot has stopped after this long: zero-velocity updates, s',
         low=0.0, high=60.0, live=True)
     # swarm_agent.stall: a free robot at its force limit accelerates at 2.8-4.5 m/s^2
-    # (Table 4.1 types, 7 deg slope), so a second of it under 0.5 m/s^2 is a body that
-    # stands.
+    # (Table 4.1 types, 7 deg slope), so a second of it under 0.5 m/s^2 is a body held
+    # by something; its filter decides whether it stands.
     stall_window_s: float = tunable(
-        1.0, 'Force at its limit this long with no acceleration: the body is blocked, s '
+        1.0, 'Force at its limit this long with no acceleration: the body is held, s '
         '(0: never)', low=0.0, high=60.0, live=True)
     stall_accel: float = tunable(
-        0.5, 'Mean acceleration under a force at its limit below which the body stands, '
+        0.5, 'Mean acceleration under a force at its limit below which the body is held, '
         'm/s^2', low=0.0, high=10.0, live=True)
     stall_sidestep_s: float = tunable(
         2.0, 'A blocked robot turns its setpoint 90 deg counter-clockwise this long, s',
