@@ -61,7 +61,7 @@ class StallDetector:
         """``force_limit`` (N; None: off)."""
         self.threshold = SATURATED * force_limit if force_limit is not None else math.inf
         self.params = params
-        self.count = 0                          # stalls (blocked after moving freely)
+        self.count = 0                          # stalls taken, once per stretch
         self._since: float | None = None        # start of the window being judged
         self._sum = np.zeros(2)                 # of the readings in the window
         self._samples = 0
