@@ -25,13 +25,14 @@ PARAMS = BrainConfig(agent_id=0, agent_type=1)   # 1 s window, 0.5 m/s^2, 2 s as
 
 
 def _judge(detector: StallDetector, readings, force=(LIMIT, 0.0), t0=0.0):
-    """Feed ``readings`` (one per IMU period) under ``force`` (N): the judgements."""
+    """Feed ``readings`` (one per IMU period, no bias estimated) under ``force`` (N): the
+    judgements."""
     out = []
     for k, accel in enumerate(readings):
         t = t0 + (k + 1) * IMU_DT
         for j in range(5):                              # the 50 Hz control steps
             detector.force(t - IMU_DT + (j + 1) * 0.02, np.asarray(force, float))
-        out.append(detector.imu(t, np.asarray(accel, float)))
+        out.append(detector.imu(t, np.asarray(accel, float), np.zeros(2)))
     return out
 
 

@@ -219,7 +219,7 @@ class AgentBrain:
         if accel.shape != (2,) or not np.all(np.isfinite(accel)):
             return
         self.localizer.predict(t, accel)
-        if self._stall.imu(t, accel - self.localizer.kf.bias):
+        if self._stall.imu(t, accel, self.localizer.kf.bias):
             taken = self.localizer.stood_still()
             self._stall.stands(t, taken)
             if taken:

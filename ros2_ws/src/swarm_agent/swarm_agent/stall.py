@@ -59,41 +59,48 @@ class StallDetector:
 
     def __init__(self, force_limit: float | None, params: StallParams) -> None:
         """``force_limit`` (N; None: off)."""
-        self.threshold = SATURATED * force_limit if force_limit is not None else math.inf
+        limit = SATURATED * force_limit if force_limit is not None else math.inf
+        self._limit_sq = limit * limit
         self.params = params
         self.count = 0                          # stalls taken, once per stretch
         self._since: float | None = None        # start of the window being judged
         self._sum = np.zeros(2)                 # of the readings in the window
-        self._samples = 0
+        self._samples = 0                       # (both reset when a window opens)
         self._stood = False                     # the last judgement, as taken
         self._sidestep_until = -math.inf
 
     def force(self, t: float, force: np.ndarray) -> None:
-        """The force commanded at ``t`` (N, map frame), every control step."""
-        norm = math.hypot(float(force[0]), float(force[1]))
-        if norm < self.threshold or self.params.stall_window_s <= 0.0:
+        """The force commanded at ``t`` (N, map frame), every control step: a few float
+        operations, no allocation (it runs at 50 Hz for every agent)."""
+        fx, fy = float(force[0]), float(force[1])
+        if fx * fx + fy * fy < self._limit_sq or self.params.stall_window_s <= 0.0:
             self._since = None
-            self._sum, self._samples = np.zeros(2), 0
             self._stood = False
         elif self._since is None:
-            self._since = t
+            self._open(t)
 
-    def imu(self, t: float, accel: np.ndarray) -> bool:
-        """One accelerometer sample at ``t`` (m/s^2, map frame, bias removed). True when
-        it ends a window at the force limit that the body did not accelerate in: the
-        caller checks its filter agrees and says so with ``stands``."""
+    def imu(self, t: float, accel: np.ndarray, bias: np.ndarray) -> bool:
+        """One accelerometer sample at ``t`` (m/s^2, map frame) and the filter's bias
+        estimate. True when it ends a window at the force limit that the body did not
+        accelerate in: the caller checks its filter agrees and says so with ``stands``."""
         if self._since is None:
             return False
         self._sum += accel
+        self._sum -= bias
         self._samples += 1
         if t - self._since < self.params.stall_window_s:
             return False
         mean = self._sum / self._samples
         standing = math.hypot(float(mean[0]), float(mean[1])) < self.params.stall_accel
         self._stood = self._stood and standing
-        self._since = t
-        self._sum, self._samples = np.zeros(2), 0
+        self._open(t)
         return standing
+
+    def _open(self, t: float) -> None:
+        """Start a window to judge at ``t``."""
+        self._since = t
+        self._sum = np.zeros(2)
+        self._samples = 0
 
     def stands(self, t: float, taken: bool) -> None:
         """What the caller made of a judgement of standing at ``t``: ``taken`` if its
