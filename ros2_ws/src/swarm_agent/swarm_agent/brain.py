@@ -53,7 +53,7 @@ from swarm_agent.assignment import assign
 from swarm_agent.assignment import SHARED as SHARED_ASSIGNMENTS
 from swarm_agent.brain_config import BrainConfig
 from swarm_agent.costs import class_costs, VisibilityGraph
-from swarm_agent.dsdv import DsdvRouter
+from swarm_agent.dsdv import Delivered, DsdvRouter
 from swarm_agent.forces import formation_force
 from swarm_agent.frame_auth import FrameAuth
 from swarm_agent.free_space import grow_obstacles
@@ -67,6 +67,7 @@ from swarm_agent.mesh_messages import (
     NeighbourInfo,
 )
 from swarm_agent.packet import Kind, Packet
+from swarm_agent.reception import receive
 from swarm_agent.setpoint import avoid_collisions, GiveWay, tracking_lag_s, velocity_setpoint
 from swarm_agent.stall import StallDetector
 from swarm_common.goals import Goal
@@ -85,12 +86,24 @@ def _inside(shape: Shape, point: np.ndarray) -> bool:
     return bool(shapely.contains_xy(shape.region, float(point[0]), float(point[1])))
 
 
-@dataclass
+@dataclass(frozen=True)
 class Neighbour:
     """Last heartbeat information from a direct neighbour."""
 
     info: NeighbourInfo
     heard_at: float
+
+
+_last_neighbour: Neighbour | None = None
+
+
+def _neighbour(info: NeighbourInfo, t: float) -> Neighbour:
+    """``Neighbour(info, t)``, one object for every receiver of one heartbeat."""
+    global _last_neighbour
+    last = _last_neighbour
+    if last is None or last.info is not info or last.heard_at != t:
+        last = _last_neighbour = Neighbour(info, t)
+    return last
 
 
 @dataclass(frozen=True)
@@ -254,20 +267,19 @@ class AgentBrain:
 
     def on_packet(self, t: float, packet: Packet) -> None:
         """A packet heard on the radio: authenticate it, route it, and consume what is
-        for this agent."""
-        if self.auth is not None:
-            packet = self.auth.open(packet)
-            if packet is None:
-                return
-        out = self.router.on_packet(t, packet)
-        if not (out.packets or out.delivered):
-            return
-        self._outbox.extend(out.packets)
-        for item in out.delivered:
+        for this agent (``reception.receive``, as for many brains at once)."""
+        receive(t, packet, (self,))
+
+    def take_routed(self, t: float, packets: Sequence[Packet],
+                    delivered: Sequence[Delivered]) -> None:
+        """What the router made of a frame heard at ``t``: frames to send, and payloads
+        for this agent (neighbours' heartbeat information, cost rows)."""
+        self._outbox.extend(packets)
+        for item in delivered:
             try:
                 if item.kind == Kind.HEARTBEAT:
-                    info = NeighbourInfo.decode(item.payload)
-                    self.neighbours[item.origin] = Neighbour(info, t)
+                    self.neighbours[item.origin] = _neighbour(
+                        NeighbourInfo.decode(item.payload), t)
                 elif message_kind(item.payload) == MSG_COST_ROW:
                     self._store_row(CostRow.decode(item.payload))
             except MeshMessageError as exc:

@@ -21,20 +21,10 @@
 - Multi-hop delivery: routed unicast DATA hop by hop along next hops with a TTL, and
   FLOOD broadcasts deduplicated by (origin, flood id); messages longer than one frame
   are fragmented and reassembled.
-- Flood relaying by the coverage condition of Wu and Dai's generic broadcast scheme
-  (IEEE Trans. Computers 53(10), 2004) on two-hop knowledge (the one-hop routes in a
-  neighbour's adverts are its neighbour set): a node stays silent when one connected set
-  of nodes that are the hop it heard the flood from or higher-id neighbours (they decide
-  the same way) reaches all its neighbours; this contains self-pruning (Lim and Kim,
-  2001) and Rule k (Dai and Wu, 2003). On a connected loss-free network every node gets
-  every flood (tested). Against loss a silent node relays anyway with probability
-  k / (its neighbours): each neighbourhood hears about k extra copies whatever its
-  density (a fixed 15 % share sent 7 extra copies of every cost row around each robot
-  of a 50-robot formation). With heartbeat loss p, a robot that missed the first copy
-  misses all k(1 - p) others with probability p^(1 + k(1 - p)); k is the least that
-  keeps this under ``flood_miss_target``, and at least ``flood_extra_copies``.
-  On the 50-agent thesis scenario (seed 0, to settling) self-pruning with a 15 % share
-  delivers 3.99 million frames, this scheme 1.63 million.
+- Flood relaying by the coverage condition of Wu and Dai on two-hop knowledge, with
+  extra relays against loss (``flood_relay``).
+- One frame, many receivers: ``hear`` applies a frame to every router of a process that
+  heard it, decoding it once (the headless evaluator); ``on_packet`` is the same for one.
 
 Malformed, truncated or unknown frames are counted in ``stats`` and dropped.
 """
@@ -42,13 +32,12 @@ Malformed, truncated or unknown frames are counted in ``stats`` and dropped.
 from __future__ import annotations
 
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 import logging
 import math
-import zlib
 
-from swarm_agent import wire
+from swarm_agent import flood_relay, wire
 from swarm_agent.packet import BROADCAST, Kind, Packet
 from swarm_agent.wire import Advert, INFINITE_HOPS, WireError
 from swarm_common.parameters import tunable
@@ -183,6 +172,10 @@ class DsdvRouter:
     def _count(self, key: str, n: int = 1) -> None:
         self.stats[key] = self.stats.get(key, 0) + n
 
+    def _malformed(self, kind: Kind, source: int, exc: WireError) -> None:
+        self._count('rejected_malformed')
+        LOG.debug('agent %d dropped a %s frame from %d: %s', self.id, kind.name, source, exc)
+
     def _packet(self, destination: int, kind: int, payload: bytes,
                 ttl: int | None = None) -> Packet:
         self._tx_seq = (self._tx_seq + 1) & 0xFFFF
@@ -282,52 +275,7 @@ class DsdvRouter:
     # ------------------------------------------------------------------ receive
     def on_packet(self, t: float, packet: Packet) -> RouterOutput:
         """Handle one frame heard on the radio. The result is read-only (may be shared)."""
-        out = _NOTHING
-        if packet.source == self.id:
-            return out
-        if not 0 <= packet.source < BROADCAST:
-            # No radio has this address (fuzzing: it broke every later full dump).
-            self._count('rejected_bad_source')
-            return out
-        if packet.destination not in (self.id, BROADCAST):
-            self._count('not_for_me')
-            return out
-        if packet.ttl <= 0:  # swarm_msgs/RadioPacket: a packet with ttl 0 is dropped
-            self._count('dropped_ttl')
-            return out
-        kind = _KINDS.get(packet.kind)   # (Kind(...) raising would be 2 % of a composed swarm)
-        if kind is None:
-            self._count('rejected_unknown_kind')
-            return out
-        if kind is _FLOOD and wire.routed_key(packet.payload) in self._seen:
-            # A copy of a flood already handled (28 % of an agent's frames in a 50-agent
-            # thesis trial): the drop _on_flood would make, before any other work.
-            self._count('duplicates')
-            return out
-        try:
-            if kind is _HEARTBEAT:
-                seq, info = wire.decode_heartbeat(packet.payload)
-                self._count_beat(t, packet.source)
-                self._heard(t, packet.source, seq)
-                out = RouterOutput(delivered=[Delivered(packet.source, Kind.HEARTBEAT, info)])
-            elif kind is _FULL or kind is _INCREMENTAL:
-                seq, adverts = wire.decode_adverts(packet.payload)
-                self._heard(t, packet.source, None, seq)
-                self._learn_neighbourhood(packet.source, adverts)
-                self._merge(packet.source, adverts)
-            elif kind is _DATA:
-                out = RouterOutput()
-                self._on_data(t, packet, out)
-            elif kind is _FLOOD:
-                out = RouterOutput()
-                self._on_flood(t, packet, out)
-            else:
-                self._count('rejected_unknown_kind')
-        except WireError as exc:
-            self._count('rejected_malformed')
-            LOG.debug('agent %d dropped a %s frame from %d: %s', self.id, kind.name,
-                      packet.source, exc)
-        return out
+        return hear(t, packet, (self,))[0]
 
     def _count_beat(self, t: float, neighbour: int) -> None:
         """The time since the neighbour's last heartbeat heard tells how many it sent."""
@@ -351,12 +299,8 @@ class DsdvRouter:
 
     def _extra_copies(self) -> float:
         """k of the module docstring for the loss seen now."""
-        k = self.config.flood_extra_copies
-        p = self.link_loss()
-        if k <= 0.0 or p <= 0.0:
-            return k              # 0 turns the redundancy off
-        p = min(p, 0.9)
-        return max(k, (math.log(self.config.flood_miss_target) / math.log(p) - 1.0) / (1.0 - p))
+        return flood_relay.extra_copies(self.config.flood_extra_copies, self.link_loss(),
+                                        self.config.flood_miss_target)
 
     def _heard(self, t: float, neighbour: int, seq: int | None, dump_seq: int = 0) -> None:
         """Link addition (Fig. 3.8): a neighbour heard directly is a one-hop route.
@@ -390,19 +334,16 @@ class DsdvRouter:
         self.table[neighbour] = RouteEntry(neighbour, neighbour, 1, best)
         self._dirty = True
 
-    def _learn_neighbourhood(self, neighbour: int, adverts: list[Advert]) -> None:
-        """A neighbour's one-hop adverts are its neighbour set (for flood pruning)."""
-        known = self.two_hop.setdefault(neighbour, set())
-        size = len(known)
-        added = False
-        for adv in adverts:
-            if adv.hops == 1:
-                if adv.destination not in known:
-                    known.add(adv.destination)
-                    added = True
-            elif adv.destination != neighbour:
-                known.discard(adv.destination)
-        if added or len(known) != size:
+    def _learn_neighbourhood(self, neighbour: int, ones: frozenset[int],
+                             others: frozenset[int]) -> None:
+        """A neighbour's one-hop adverts are its neighbour set (for flood pruning):
+        ``ones`` are advertised at one hop, ``others`` at more (``_AdvertPlan``)."""
+        known = self.two_hop.get(neighbour)
+        if known is None:
+            known = self.two_hop[neighbour] = set()
+        if not ones <= known or not known.isdisjoint(others):
+            known |= ones
+            known -= others
             self._view_changed()
 
     def _view_changed(self) -> None:
@@ -413,91 +354,49 @@ class DsdvRouter:
         """Relay unless the coverage condition (module docstring) lets this node be silent."""
         silent = self._silent_after.get(previous_hop)
         if silent is None:
-            silent = self._silent_after[previous_hop] = self._covered(previous_hop)
+            if self._higher is None:   # neighbours with a higher id and a known neighbourhood
+                self._higher = {z for z in self.heard if z > self.id and z in self.two_hop}
+            silent = self._silent_after[previous_hop] = flood_relay.covered(
+                previous_hop, self.heard.keys(), self.two_hop, self._higher)
         if not silent:
             return True
-        copies = self._copies
-        if copies <= 0.0:
-            return False
-        fraction = copies / max(len(self.heard), 1)
-        # Deterministic per (flood, node): the same decision on every run.
-        draw = zlib.crc32(flood_id.to_bytes(2, 'little') + origin.to_bytes(2, 'little')
-                          + self.id.to_bytes(2, 'little'))
-        return draw < fraction * 0xFFFFFFFF
+        return flood_relay.relays_anyway(self._copies, len(self.heard), flood_id, origin,
+                                         self.id)
 
-    def _covered(self, previous_hop: int) -> bool:
-        """Do the previous hop and higher-id neighbours, joined up, reach all neighbours?
+    def _merge(self, neighbour: int, entries: tuple[tuple[int, int, int], ...]) -> None:
+        """Apply the two selection rules (3.1.2.1) to a neighbour's adverts, given as
+        (destination, hops through the neighbour, sequence number) (``_AdvertPlan``).
 
-        Wu and Dai's coverage condition on two-hop knowledge, checked as: one connected
-        group of the previous hop and higher-id neighbours whose closed neighbourhoods
-        contain all our neighbours (a few dozen nodes, per view change).
-        """
-        sender_reach = self.two_hop.get(previous_hop)
-        if sender_reach is None:
-            return False  # the sender's neighbourhood is unknown: relay to be safe
-        need = self.heard.keys() - sender_reach
-        need.discard(previous_hop)
-        if not need:
-            return True   # self-pruning: the sender reached every neighbour of ours
-        # Rule k joined with the sender: walk from the sender through higher-id neighbours
-        # linked to it until all our neighbours are reached (a group not linked to the
-        # sender never helps). A link one side does not advertise yet only makes us relay.
-        two_hop = self.two_hop
-        remaining = self._higher_neighbours() - {previous_hop}
-        joined = set(sender_reach)
-        frontier = [previous_hop]
-        while frontier:
-            linked = two_hop[frontier.pop()] & remaining
-            if linked:
-                remaining -= linked
-                joined |= linked
-                for w in linked:
-                    joined |= two_hop[w]
-                if need <= joined:
-                    return True
-                frontier.extend(linked)
-        return False
-
-    def _higher_neighbours(self) -> set[int]:
-        """Neighbours with a higher id whose neighbourhood is known (kept per view)."""
-        if self._higher is None:
-            self._higher = {z for z in self.heard if z > self.id and z in self.two_hop}
-        return self._higher
-
-    def _merge(self, neighbour: int, adverts: list[Advert]) -> None:
-        """Apply the two selection rules (3.1.2.1) to a neighbour's adverts.
-
-        Runs for every advert of every dump heard (a tenth of the headless evaluator), so
-        the common case, a number we already hold over no shorter path, is tested first
-        and serial-number order is inlined.
+        Runs for every advert of every dump heard by every receiver (a tenth of the
+        headless evaluator), so the common case, a number we already hold over no
+        shorter path, is tested first and serial-number order is inlined.
         """
         table = self.table
         stale = self.config.stale_generations * SEQUENCE_STEP
-        for adv in adverts:
-            dest = adv.destination
-            if dest == self.id:
-                if seq_newer(adv.sequence, self.sequence):
+        own = self.id
+        for dest, hops, sequence in entries:
+            if dest == own:
+                if seq_newer(sequence, self.sequence):
                     # Someone holds a newer (odd, broken) number for us: outbid it.
-                    self.sequence = _seq_add(adv.sequence, 1 if adv.sequence % 2 else 2)
+                    self.sequence = _seq_add(sequence, 1 if sequence % 2 else 2)
                 continue
-            hops = INFINITE_HOPS if adv.hops >= INFINITE_HOPS - 1 else adv.hops + 1
             current = table.get(dest)
             if current is None:
                 if hops < INFINITE_HOPS:
-                    table[dest] = RouteEntry(dest, neighbour, hops, adv.sequence)
+                    table[dest] = RouteEntry(dest, neighbour, hops, sequence)
                     self._dirty = True
                 continue
-            ahead = (adv.sequence - current.sequence_number) & SEQUENCE_MASK
+            ahead = (sequence - current.sequence_number) & SEQUENCE_MASK
             if ahead == 0:
                 if hops < current.hop_count:   # same number, shorter path
-                    self._take(current, neighbour, hops, adv.sequence)
+                    self._take(current, neighbour, hops, sequence)
                 continue
             if ahead >= _HALF:
                 continue                        # older than what we hold
             if hops >= INFINITE_HOPS:
                 # Fig. 3.9: a newer broken-link advert invalidates the stale route.
                 current.hop_count = INFINITE_HOPS
-                current.sequence_number = adv.sequence
+                current.sequence_number = sequence
                 current.changed = self._dirty = True
                 continue
             if not (current.next_hop == neighbour or hops <= current.hop_count
@@ -506,7 +405,7 @@ class DsdvRouter:
                 # flap; the shorter path brings it soon. It wins ``stale_generations`` on.
                 self._count('damped')
                 continue
-            self._take(current, neighbour, hops, adv.sequence)
+            self._take(current, neighbour, hops, sequence)
 
     def _take(self, route: RouteEntry, neighbour: int, hops: int, sequence: int) -> None:
         """Adopt a neighbour's advert.
@@ -598,3 +497,104 @@ class DsdvRouter:
             out.delivered.append(Delivered(origin, kind, b''.join(pieces[i]
                                                                   for i in range(count))))
             self._count('delivered')
+
+
+# ---------------------------------------------------------------------- receive
+def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[RouterOutput]:
+    """One frame heard by each of ``routers`` (the receivers of one transmission in this
+    process): what depends on the frame alone (checks, decoding, the adverts' plan) is
+    done once, then each router applies it. Outputs in order, read-only (may be shared)."""
+    outs = [_NOTHING] * len(routers)
+    source = packet.source
+    if not 0 <= source < BROADCAST:   # no radio has this address (fuzzing)
+        _count_all(routers, 'rejected_bad_source')
+        return outs
+    destination = packet.destination
+    taking = [(i, r) for i, r in enumerate(routers)
+              if r.id != source and (destination == BROADCAST or r.id == destination)]
+    if len(taking) < len(routers):
+        _count_all([r for r in routers if r.id != source and r.id != destination
+                    and destination != BROADCAST], 'not_for_me')
+    if not taking:
+        return outs
+    kind = _KINDS.get(packet.kind)   # (Kind(...) raising would be 2 % of a composed swarm)
+    if packet.ttl <= 0 or kind is None:   # swarm_msgs/RadioPacket: ttl 0 is dropped
+        _count_all([r for _, r in taking],
+                   'dropped_ttl' if packet.ttl <= 0 else 'rejected_unknown_kind')
+        return outs
+    try:
+        if kind is _FLOOD:
+            key = wire.routed_key(packet.payload)
+            for i, r in taking:
+                if key in r._seen:
+                    # A copy already handled (28 % of an agent's frames in a 50-agent
+                    # thesis trial): dropped before any other work.
+                    r._count('duplicates')
+                else:
+                    outs[i] = _per_router(r, t, packet, kind, r._on_flood)
+        elif kind is _HEARTBEAT:
+            seq, info = wire.decode_heartbeat(packet.payload)
+            heartbeat = RouterOutput(delivered=[Delivered(source, Kind.HEARTBEAT, info)])
+            for i, r in taking:
+                r._count_beat(t, source)
+                r._heard(t, source, seq)
+                outs[i] = heartbeat
+        elif kind is _FULL or kind is _INCREMENTAL:
+            seq, adverts = wire.decode_adverts(packet.payload)
+            entries, ones, others = _advert_plan(source, adverts)
+            for _, r in taking:
+                r._heard(t, source, None, seq)
+                r._learn_neighbourhood(source, ones, others)
+                r._merge(source, entries)
+        elif kind is _DATA:
+            for i, r in taking:
+                outs[i] = _per_router(r, t, packet, kind, r._on_data)
+        else:   # a known kind with no handler (FRAGMENT travels inside DATA and FLOOD)
+            _count_all([r for _, r in taking], 'rejected_unknown_kind')
+    except WireError as exc:
+        # The frame's own decoding failed: the same for every receiver.
+        for _, r in taking:
+            r._malformed(kind, source, exc)
+    return outs
+
+
+def _per_router(router: DsdvRouter, t: float, packet: Packet, kind: Kind,
+                handle: Callable[[float, Packet, RouterOutput], None]) -> RouterOutput:
+    out = RouterOutput()
+    try:
+        handle(t, packet, out)
+    except WireError as exc:
+        router._malformed(kind, packet.source, exc)
+    return out
+
+
+def _count_all(routers: Sequence[DsdvRouter], key: str) -> None:
+    for router in routers:
+        router._count(key)
+
+
+_last_plan: tuple[object, object] = (None, None)
+
+
+def _advert_plan(neighbour: int, adverts: tuple[Advert, ...]) -> tuple[
+        tuple[tuple[int, int, int], ...], frozenset[int], frozenset[int]]:
+    """What a neighbour's adverts say to every receiver: (destination, hops through the
+    neighbour, sequence) per advert (``_merge``), and the destinations advertised at one
+    hop and at more (its neighbour set, ``_learn_neighbourhood``; of two adverts of one
+    destination the later counts). Kept by the adverts' identity and the neighbour."""
+    global _last_plan
+    key, plan = _last_plan
+    if key is not None and key[0] is adverts and key[1] == neighbour:
+        return plan
+    entries = tuple((a.destination, INFINITE_HOPS if a.hops >= INFINITE_HOPS - 1
+                     else a.hops + 1, a.sequence) for a in adverts)
+    last_op: dict[int, bool] = {}
+    for a in adverts:
+        if a.hops == 1:
+            last_op[a.destination] = True
+        elif a.destination != neighbour:
+            last_op[a.destination] = False
+    plan = (entries, frozenset(d for d, one in last_op.items() if one),
+            frozenset(d for d, one in last_op.items() if not one))
+    _last_plan = ((adverts, neighbour), plan)
+    return plan

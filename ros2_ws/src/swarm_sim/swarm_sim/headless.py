@@ -38,6 +38,7 @@ from swarm_agent.agent_factory import make_brain, swarm_keyring
 from swarm_agent.brain import AgentBrain
 from swarm_agent.frame_auth import FrameAuth, FrameAuthError
 from swarm_agent.mission_radio import MeshListener
+from swarm_agent.reception import receive
 from swarm_common.fleet import place_fleet, PLACEMENT_STD_M, random_fleet, RobotSpec
 from swarm_common.robot_types import load_robot_types
 from swarm_common.shapes import Shape
@@ -324,10 +325,9 @@ class HeadlessSwarm:
         """The world's readings to the living brains: radio, IMU, ranges, proximity, GPS."""
         brains, index = self.brains, self.index
         for t, packet, receivers in readings.rx or ():
-            for receiver in receivers:   # 10^4 frames a sim-second: kept lean
-                brain = brains[index[receiver]]
-                if brain is not None:
-                    brain.on_packet(t, packet)
+            # One transmission, all its receivers in one call (reception.receive).
+            heard = [brains[index[receiver]] for receiver in receivers]
+            receive(t, packet, [b for b in heard if b is not None])
         t = readings.t
         if readings.imu is not None:
             for i in readings.living:

@@ -1,0 +1,49 @@
+"""One radio frame heard by the brains of a process: authenticated, routed, consumed.
+
+A transmission reaches every robot in range (thesis 3.1.2); a process that holds many
+brains (the headless evaluator) hands it to all its receivers at once, and a node with
+one brain hands it to that one (``AgentBrain.on_packet``). Both run this code: the frame
+is opened by each receiver's own replay window (``frame_auth``), then routed by every
+receiving router in one call (``dsdv.hear``: the frame's checks and decoding once, each
+router's state after), and what the routers deliver is consumed by each brain.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+from swarm_agent.dsdv import hear
+from swarm_agent.packet import Packet
+
+if TYPE_CHECKING:
+    from swarm_agent.brain import AgentBrain
+
+
+def receive(t: float, packet: Packet, brains: Sequence[AgentBrain]) -> None:
+    """``packet``, heard at ``t`` by each of ``brains`` (distinct brains)."""
+    opened: Packet | None = None
+    group: list[AgentBrain] = []       # the receivers that opened it to ``opened``
+    others: list[tuple[AgentBrain, Packet]] = []
+    for brain in brains:
+        auth = brain.auth
+        frame = packet if auth is None else auth.open(packet)
+        if frame is None:
+            continue                    # rejected, counted by its FrameAuth
+        if opened is None:
+            opened = frame
+        if frame is opened:
+            group.append(brain)
+        else:   # opened under another keyring (or none): routed on its own
+            others.append((brain, frame))
+    if group:
+        _route(t, opened, group)
+    for brain, frame in others:
+        _route(t, frame, (brain,))
+
+
+def _route(t: float, frame: Packet, brains: Sequence[AgentBrain]) -> None:
+    outs = hear(t, frame, [brain.router for brain in brains])
+    for brain, out in zip(brains, outs):
+        if out.packets or out.delivered:
+            brain.take_routed(t, out.packets, out.delivered)

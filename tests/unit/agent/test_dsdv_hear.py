@@ -1,0 +1,64 @@
+"""``dsdv.hear``: one frame applied to several routers at once is the same as applying
+it to each (``DsdvRouter.on_packet``), for every kind of frame and every way it fails."""
+
+from __future__ import annotations
+
+import copy
+
+import pytest
+
+from swarm_agent.dsdv import DsdvRouter, hear
+from swarm_agent.packet import BROADCAST, Kind, Packet
+
+
+def _mesh() -> list[DsdvRouter]:
+    """Five routers 1-5 in a line, run 6 s, so tables, neighbour sets and floods exist."""
+    routers = [DsdvRouter(i) for i in range(1, 6)]
+    t = 0.0
+    while t < 6.0:
+        for k, router in enumerate(routers):
+            for packet in router.tick(t):
+                for j in (k - 1, k + 1):
+                    if 0 <= j < len(routers):
+                        routers[j].on_packet(t, packet)
+        t += 0.1
+    return routers
+
+
+def _state(router: DsdvRouter):
+    return (router.sequence, {d: vars(r) for d, r in router.table.items()},
+            dict(router.heard), {k: set(v) for k, v in router.two_hop.items()},
+            dict(router.stats), list(router._seen))
+
+
+FRAMES = {
+    'heartbeat': lambda r: r[2].tick(10.0)[0],                        # from router 3
+    'full dump': lambda r: [p for p in r[2].tick(10.0) if p.kind == Kind.DSDV_FULL][0],
+    'flood': lambda r: r[0].broadcast(6.0, b'row' * 40)[0],            # fragmented
+    'flood copy': lambda r: r[1].broadcast(6.0, b'x')[0],
+    'data for 4': lambda r: r[2].send(6.0, 4, b'hello')[0],
+    'own frame': lambda r: r[1].tick(10.0)[0],                        # 2 hears itself
+    'fragment kind': lambda r: Packet(3, BROADCAST, int(Kind.FRAGMENT), 1, 1, b'\0' * 8),
+    'bad source': lambda r: Packet(BROADCAST, BROADCAST, int(Kind.HEARTBEAT), 1, 1, b''),
+    'ttl 0': lambda r: Packet(3, BROADCAST, int(Kind.HEARTBEAT), 1, 0, b'\0' * 4),
+    'unknown kind': lambda r: Packet(3, BROADCAST, 9, 1, 1, b'\0' * 8),
+    'malformed dump': lambda r: Packet(3, BROADCAST, int(Kind.DSDV_FULL), 1, 1, b'\2\0'),
+    'malformed flood': lambda r: Packet(3, BROADCAST, int(Kind.FLOOD), 1, 1, b'\2\0'),
+}
+
+
+@pytest.mark.parametrize('name', sorted(FRAMES))
+def test_one_call_for_all_receivers_is_one_call_each(name):
+    mesh = _mesh()
+    packet = FRAMES[name](mesh)
+    receivers = [mesh[1], mesh[3], mesh[4]]          # 2, 4 and 5
+    apart = copy.deepcopy(receivers)
+    before = [_state(r) for r in receivers]
+    outs_apart = [r.on_packet(6.5, packet) for r in apart]
+    outs = hear(6.5, packet, receivers)
+    assert len(outs) == 3
+    for together, alone, out, out_alone in zip(receivers, apart, outs, outs_apart):
+        assert _state(together) == _state(alone)
+        assert out.packets == out_alone.packets and out.delivered == out_alone.delivered
+    # Each frame did something to some router: learnt, stored, counted or dropped as such.
+    assert any(_state(r) != b for r, b in zip(receivers, before))
