@@ -2,12 +2,14 @@
 """Where one evaluator trial's CPU time goes: frame deliveries by kind and brain steps.
 
 Runs the 50-agent thesis scenario (``swarm_eval.scenario.run_trial(ScenarioSpec(),
-seed)``) with ``AgentBrain.on_packet`` and ``AgentBrain.step`` timed by
-``time.process_time`` around each call (the clock reads add about a quarter to the run),
-deliveries sorted by kind: heartbeat, route dump (full or incremental), flood frame heard
-for the first time, flood duplicate. Prints per kind the count, CPU seconds, microseconds
-per event and share of the run, the brain steps taken and rested (``brain_steps``) and
-why the active ones were active. docs/throughput.md shows its figures.
+seed)``) with the evaluator's hand-over of each transmission to its receivers
+(``reception.receive``) and ``AgentBrain.step`` timed by ``time.process_time`` around
+each call (the clock reads add to the run), transmissions sorted by kind: heartbeat,
+route dump (full or incremental), flood (its deliveries counted as first copies and
+duplicates), routed data. Prints per kind the transmissions, the deliveries, CPU seconds,
+microseconds per delivery and share of the run, the brain steps taken and rested
+(``brain_steps``) and why the active ones were active. docs/throughput.md shows its
+figures.
 
   scripts/env.sh python benchmarks/bench_trial_profile.py --seed 0
 """
@@ -21,30 +23,35 @@ import time
 from swarm_agent import wire
 from swarm_agent.brain import AgentBrain
 from swarm_eval.scenario import run_trial, ScenarioSpec
+from swarm_sim import headless
 
-KINDS = {0: 'heartbeat', 1: 'route dump', 2: 'route dump', 3: 'routed data'}
+KINDS = {0: 'heartbeat', 1: 'route dump', 2: 'route dump', 3: 'routed data', 4: 'flood'}
 
 
-def instrument(cost: dict, count: dict, why: dict) -> None:
-    """Wrap the brain's entry points with timers (class-wide, for this process)."""
+def instrument(cost: dict, count: dict, sent: dict, why: dict) -> None:
+    """Wrap the evaluator's frame hand-over and the brain's entry points with timers
+    (for this process)."""
     clock = time.process_time
-    on_packet, step, rest = AgentBrain.on_packet, AgentBrain.step, AgentBrain.rest
+    receive, step, rest = headless.receive, AgentBrain.step, AgentBrain.rest
 
-    def timed_packet(self, t, packet):
-        kind = KINDS.get(packet.kind)
-        if kind is None:
-            duplicate = wire.routed_key(packet.payload) in self.router._seen
-            kind = 'flood duplicate' if duplicate else 'flood first copy'
+    def timed_receive(t, packet, brains):
+        kind = KINDS.get(packet.kind, 'flood')
+        if kind == 'flood':
+            key = wire.routed_key(packet.payload)
+            duplicates = sum(key in brain.router._seen for brain in brains)
+            count['- of which duplicates'] += duplicates
+        count[kind] += len(brains)
+        sent[kind] += 1
         t0 = clock()
-        on_packet(self, t, packet)
+        receive(t, packet, brains)
         cost[kind] += clock() - t0
-        count[kind] += 1
 
     def timed_step(self, t):
         t0 = clock()
         out = step(self, t)
         cost['brain step'] += clock() - t0
         count['brain step'] += 1
+        sent['brain step'] += 1
         return out
 
     def counted_rest(self, t):
@@ -65,25 +72,30 @@ def instrument(cost: dict, count: dict, why: dict) -> None:
             why['router timer due'] += 1
         return False
 
-    AgentBrain.on_packet, AgentBrain.step, AgentBrain.rest = \
-        timed_packet, timed_step, counted_rest
+    headless.receive = timed_receive
+    AgentBrain.step, AgentBrain.rest = timed_step, counted_rest
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('--seed', type=int, default=0, help='trial seed (default 0)')
     args = parser.parse_args()
-    cost, count, why = defaultdict(float), defaultdict(int), defaultdict(int)
-    instrument(cost, count, why)
+    cost, count, sent, why = (defaultdict(float), defaultdict(int), defaultdict(int),
+                              defaultdict(int))
+    instrument(cost, count, sent, why)
     t0, w0 = time.process_time(), time.perf_counter()
     record = run_trial(ScenarioSpec(), args.seed)
     total, wall = time.process_time() - t0, time.perf_counter() - w0
     print(f'seed {args.seed}: {record.times[-1]:.1f} sim-s, {total:.1f} CPU-s, '
           f'{wall:.1f} wall-s, settling time {record.metrics["settling_time"]}')
-    print(f'{"work":<20} {"count":>10} {"CPU s":>8} {"us each":>8} {"share":>6}')
-    for kind in sorted(count, key=lambda k: -cost[k]):
-        print(f'{kind:<20} {count[kind]:>10,} {cost[kind]:>8.2f} '
-              f'{1e6 * cost[kind] / count[kind]:>8.1f} {cost[kind] / total:>6.1%}')
+    print(f'{"work":<22} {"calls":>9} {"deliveries":>10} {"CPU s":>8} {"us each":>8} '
+          f'{"share":>6}')
+    for kind in sorted(cost, key=lambda k: -cost[k]):
+        print(f'{kind:<22} {sent[kind]:>9,} {count[kind]:>10,} {cost[kind]:>8.2f} '
+              f'{1e6 * cost[kind] / max(count[kind], 1):>8.1f} {cost[kind] / total:>6.1%}')
+        if kind == 'flood':
+            print(f'{"- of which duplicates":<22} {"":>9} '
+                  f'{count["- of which duplicates"]:>10,}')
     rest = total - sum(cost.values())
     print(f'{"everything else":<20} {"":>10} {rest:>8.2f} {"":>8} {rest / total:>6.1%}')
     print('brain steps:', record.metrics['brain_steps'])

@@ -111,11 +111,12 @@ def test_a_sensor_batch_carries_each_robots_part_of_a_step():
     with pytest.raises(PacketError, match='summing to 4 but 3 x'):
         sensor_batch_from_msg(msg)
     msg.prox_counts = [2, 0, 1]
-    assert rx == {4: frames, 9: frames[2:], 11: [frames[0], frames[2]]}
+    # Grouped by frame again, in arrival order: each receiver's frames keep their order.
+    assert rx == [(s0, f0, [4, 11]), (s1, f1, [4]), (s2, f2, [4, 9, 11])]
     # Each frame travels once, whatever the number of its receivers.
     assert len(msg.rx_frames) == 6 and len(msg.frames) == len(pack_frames(frames))
     empty = sensor_batch_to_msg(stamp)            # nothing due this step
-    assert sensor_batch_from_msg(empty) == ([], [], {}, {})
+    assert sensor_batch_from_msg(empty) == ([], [], {}, [])
     # Arrays that disagree, or a receiver's bytes cut short, are refused, never misread.
     every = [(s, f, [4]) for s, f in frames]
     short = sensor_batch_to_msg(stamp, rx=every)

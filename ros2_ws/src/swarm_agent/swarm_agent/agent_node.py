@@ -402,11 +402,16 @@ class AgentNode(Node):
 
     def on_radio_frames(self, stamp: float, frames: Frames) -> None:
         """Frames the radio heard, delivered in a batch stamped ``stamp`` (s)."""
+        now = self.radio_time(stamp)
+        for _, packet in frames:
+            self.brain.on_packet(now, packet)
+
+    def radio_time(self, stamp: float) -> float:
+        """Now (s), for frames in a batch stamped ``stamp``; notes how late it came."""
         now = self._now()
         if stamp > 0.0:
             self._radio_lag_max = max(self._radio_lag_max, now - stamp)
-        for _, packet in frames:
-            self.brain.on_packet(now, packet)
+        return now
 
     def on_shape(self, msg: FormationShape) -> None:
         """A new desired shape (swarm_msgs/FormationShape)."""

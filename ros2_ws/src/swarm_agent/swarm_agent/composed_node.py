@@ -70,6 +70,7 @@ from swarm_agent.agent_node import (
 from swarm_agent.brain_config import BrainConfigError
 from swarm_agent.conversions import sensor_batch_from_msg, stamp_seconds
 from swarm_agent.packet import PacketError
+from swarm_agent.reception import receive
 from swarm_common import qos
 from swarm_common.ros_support import declare_list_parameter, run_node
 from swarm_msgs.msg import ForceBatch, FormationShape, GoalArray, RadioPacketArray, SensorBatch
@@ -267,9 +268,17 @@ class ComposedAgents(Node):
         for agent_id, (offsets, radii) in proximity.items():
             if agent_id in agents:
                 agents[agent_id].on_proximity_scan(stamp, offsets, radii)
-        for agent_id, frames in rx.items():
-            if agent_id in agents:
-                agents[agent_id].on_radio_frames(stamp, frames)
+        if rx:
+            # Each transmission to all its receivers here in one call (reception.receive,
+            # as the headless evaluator); each receiver's frames stay in arrival order.
+            now = None
+            for agent_id in {r for _, _, receivers in rx for r in receivers}:
+                if agent_id in agents:
+                    now = agents[agent_id].radio_time(stamp)
+            for _, packet, receivers in rx:
+                brains = [agents[r].brain for r in receivers if r in agents]
+                if brains:
+                    receive(now, packet, brains)
 
     def _on_kill(self, msg: Int32MultiArray) -> None:
         for agent_id in msg.data:

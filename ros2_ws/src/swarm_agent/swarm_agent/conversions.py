@@ -160,10 +160,11 @@ def sensor_batch_to_msg(stamp: Time, *, imu_ids=(), imu_accel=None, imu_noise_st
 
 def sensor_batch_from_msg(msg: SensorBatch) -> tuple[
         list[tuple[int, float, float]], list[RangeArray],
-        dict[int, tuple[np.ndarray, np.ndarray]], dict[int, list[tuple[float, Packet]]]]:
+        dict[int, tuple[np.ndarray, np.ndarray]], list[tuple[float, Packet, list[int]]]]:
     """swarm_msgs/SensorBatch -> (imu samples (id, ax, ay), range arrays, proximity scans
-    by observer (offsets (k, 2), radii (k,)), rx frames by receiver). Raises PacketError
-    when the imu, proximity or radio arrays disagree or a frame is corrupt."""
+    by observer (offsets (k, 2), radii (k,)), radio deliveries grouped by frame in arrival
+    order, ``(stamp, packet, receivers)`` as ``sensor_batch_to_msg`` takes them). Raises
+    PacketError when the imu, proximity or radio arrays disagree or a frame is corrupt."""
     if not len(msg.imu_ax) == len(msg.imu_ay) == len(msg.imu_ids):
         raise PacketError(f'{len(msg.imu_ids)} imu ids but {len(msg.imu_ax)} x and '
                           f'{len(msg.imu_ay)} y accelerations')
@@ -189,10 +190,14 @@ def sensor_batch_from_msg(msg: SensorBatch) -> tuple[
     if len(msg.rx_frames) and max(msg.rx_frames) >= len(distinct):
         raise PacketError(f'frame index {max(msg.rx_frames)} beyond the {len(distinct)} '
                           'frames sent')
-    refs, offset, rx = list(msg.rx_frames), 0, {}
+    refs, offset = list(msg.rx_frames), 0
+    heard_by: list[list[int]] = [[] for _ in distinct]
     for receiver, count in zip(msg.rx_ids, msg.rx_counts):
-        rx[int(receiver)] = [distinct[k] for k in refs[offset:offset + count]]
+        for k in refs[offset:offset + count]:
+            heard_by[k].append(int(receiver))
         offset += count
+    rx = [(stamp, packet, receivers)
+          for (stamp, packet), receivers in zip(distinct, heard_by) if receivers]
     return imu, list(msg.ranges), proximity, rx
 
 
