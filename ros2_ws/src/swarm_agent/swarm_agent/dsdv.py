@@ -24,7 +24,8 @@
 - Flood relaying by the coverage condition of Wu and Dai on two-hop knowledge, with
   extra relays against loss (``flood_relay``).
 - One frame, many receivers: ``hear`` applies a frame to every router of a process that
-  heard it, decoding it once (the headless evaluator); ``on_packet`` is the same for one.
+  heard it, checking and decoding it once (the headless evaluator, the composed
+  container); ``on_packet`` is the same for one.
 
 Malformed, truncated or unknown frames are counted in ``stats`` and dropped.
 """
@@ -334,16 +335,19 @@ class DsdvRouter:
         self.table[neighbour] = RouteEntry(neighbour, neighbour, 1, best)
         self._dirty = True
 
-    def _learn_neighbourhood(self, neighbour: int, ones: frozenset[int],
-                             others: frozenset[int]) -> None:
-        """A neighbour's one-hop adverts are its neighbour set (for flood pruning):
-        ``ones`` are advertised at one hop, ``others`` at more (``_AdvertPlan``)."""
-        known = self.two_hop.get(neighbour)
-        if known is None:
-            known = self.two_hop[neighbour] = set()
-        if not ones <= known or not known.isdisjoint(others):
-            known |= ones
-            known -= others
+    def _learn_neighbourhood(self, neighbour: int, adverts: tuple[Advert, ...]) -> None:
+        """A neighbour's one-hop adverts are its neighbour set (for flood pruning)."""
+        known = self.two_hop.setdefault(neighbour, set())
+        size = len(known)
+        added = False
+        for dest, hops, _ in adverts:
+            if hops == 1:
+                if dest not in known:
+                    known.add(dest)
+                    added = True
+            elif dest != neighbour:
+                known.discard(dest)
+        if added or len(known) != size:
             self._view_changed()
 
     def _view_changed(self) -> None:
@@ -363,9 +367,8 @@ class DsdvRouter:
         return flood_relay.relays_anyway(self._copies, len(self.heard), flood_id, origin,
                                          self.id)
 
-    def _merge(self, neighbour: int, entries: tuple[tuple[int, int, int], ...]) -> None:
-        """Apply the two selection rules (3.1.2.1) to a neighbour's adverts, given as
-        (destination, hops through the neighbour, sequence number) (``_AdvertPlan``).
+    def _merge(self, neighbour: int, adverts: tuple[Advert, ...]) -> None:
+        """Apply the two selection rules (3.1.2.1) to a neighbour's adverts.
 
         Runs for every advert of every dump heard by every receiver (a tenth of the
         headless evaluator), so the common case, a number we already hold over no
@@ -374,12 +377,13 @@ class DsdvRouter:
         table = self.table
         stale = self.config.stale_generations * SEQUENCE_STEP
         own = self.id
-        for dest, hops, sequence in entries:
+        for dest, hops, sequence in adverts:
             if dest == own:
                 if seq_newer(sequence, self.sequence):
                     # Someone holds a newer (odd, broken) number for us: outbid it.
                     self.sequence = _seq_add(sequence, 1 if sequence % 2 else 2)
                 continue
+            hops = INFINITE_HOPS if hops >= INFINITE_HOPS - 1 else hops + 1
             current = table.get(dest)
             if current is None:
                 if hops < INFINITE_HOPS:
@@ -502,8 +506,8 @@ class DsdvRouter:
 # ---------------------------------------------------------------------- receive
 def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[RouterOutput]:
     """One frame heard by each of ``routers`` (the receivers of one transmission in this
-    process): what depends on the frame alone (checks, decoding, the adverts' plan) is
-    done once, then each router applies it. Outputs in order, read-only (may be shared)."""
+    process): what depends on the frame alone (checks, kind, decoding) is done once,
+    then each router applies it. Outputs in order, read-only (may be shared)."""
     outs = [_NOTHING] * len(routers)
     source = packet.source
     if not 0 <= source < BROADCAST:   # no radio has this address (fuzzing)
@@ -541,11 +545,10 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
                 outs[i] = heartbeat
         elif kind is _FULL or kind is _INCREMENTAL:
             seq, adverts = wire.decode_adverts(packet.payload)
-            entries, ones, others = _advert_plan(source, adverts)
             for _, r in taking:
                 r._heard(t, source, None, seq)
-                r._learn_neighbourhood(source, ones, others)
-                r._merge(source, entries)
+                r._learn_neighbourhood(source, adverts)
+                r._merge(source, adverts)
         elif kind is _DATA:
             for i, r in taking:
                 outs[i] = _per_router(r, t, packet, kind, r._on_data)
@@ -571,30 +574,3 @@ def _per_router(router: DsdvRouter, t: float, packet: Packet, kind: Kind,
 def _count_all(routers: Sequence[DsdvRouter], key: str) -> None:
     for router in routers:
         router._count(key)
-
-
-_last_plan: tuple[object, object] = (None, None)
-
-
-def _advert_plan(neighbour: int, adverts: tuple[Advert, ...]) -> tuple[
-        tuple[tuple[int, int, int], ...], frozenset[int], frozenset[int]]:
-    """What a neighbour's adverts say to every receiver: (destination, hops through the
-    neighbour, sequence) per advert (``_merge``), and the destinations advertised at one
-    hop and at more (its neighbour set, ``_learn_neighbourhood``; of two adverts of one
-    destination the later counts). Kept by the adverts' identity and the neighbour."""
-    global _last_plan
-    key, plan = _last_plan
-    if key is not None and key[0] is adverts and key[1] == neighbour:
-        return plan
-    entries = tuple((a.destination, INFINITE_HOPS if a.hops >= INFINITE_HOPS - 1
-                     else a.hops + 1, a.sequence) for a in adverts)
-    last_op: dict[int, bool] = {}
-    for a in adverts:
-        if a.hops == 1:
-            last_op[a.destination] = True
-        elif a.destination != neighbour:
-            last_op[a.destination] = False
-    plan = (entries, frozenset(d for d, one in last_op.items() if one),
-            frozenset(d for d, one in last_op.items() if not one))
-    _last_plan = ((adverts, neighbour), plan)
-    return plan

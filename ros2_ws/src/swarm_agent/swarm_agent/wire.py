@@ -27,10 +27,9 @@ bytes), and they only read it.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 import functools
 import struct
-from typing import TypeVar
+from typing import NamedTuple, TypeVar
 
 from swarm_agent.packet import MAX_BODY
 
@@ -78,9 +77,9 @@ def last_result(decode: Callable[[bytes], _T]) -> Callable[[bytes], _T]:
     return cached
 
 
-@dataclass(frozen=True)
-class Advert:
-    """One advertised route: destination, hop count (255 = broken), its sequence number."""
+class Advert(NamedTuple):
+    """One advertised route: destination, hop count (255 = broken), its sequence number.
+    A tuple: decoded straight from the frame's entries, and unpacked by every receiver."""
 
     destination: int
     hops: int
@@ -114,7 +113,7 @@ def encode_adverts(sender_sequence: int, adverts: list[Advert]) -> list[bytes]:
 
 @last_result
 def decode_adverts(data: bytes) -> tuple[int, tuple[Advert, ...]]:
-    """(sender sequence, adverts) of a DSDV frame, an immutable tuple of frozen adverts.
+    """(sender sequence, adverts) of a DSDV frame, an immutable tuple of ``Advert`` tuples.
 
     Also kept by content: advert frames repeat across transmissions (an incremental
     update sent again unchanged): in the 50-agent thesis trial the content cache
@@ -131,9 +130,7 @@ def _adverts(data: bytes) -> tuple[int, tuple[Advert, ...]]:
     if len(data) != _ADV_HEAD.size + count * _ADV_ENTRY.size:
         raise WireError(f'advert of {count} entries must be '
                         f'{_ADV_HEAD.size + count * _ADV_ENTRY.size} bytes, got {len(data)}')
-    adverts = tuple(Advert(*_ADV_ENTRY.unpack_from(data, _ADV_HEAD.size + i * _ADV_ENTRY.size))
-                    for i in range(count))
-    return seq, adverts
+    return seq, tuple(map(Advert._make, _ADV_ENTRY.iter_unpack(data[_ADV_HEAD.size:])))
 
 
 def encode_routed(origin: int, second: int, chunk: bytes) -> bytes:
