@@ -62,3 +62,22 @@ def test_one_call_for_all_receivers_is_one_call_each(name):
         assert out.packets == out_alone.packets and out.delivered == out_alone.delivered
     # Each frame did something to some router: learnt, stored, counted or dropped as such.
     assert any(_state(r) != b for r, b in zip(receivers, before))
+
+
+def test_a_neighbours_dump_tells_its_neighbour_set():
+    """One-hop adverts are the sender's neighbours (flood pruning); a destination the
+    sender advertises at more hops, or as broken, is not; itself is never one."""
+    from swarm_agent.wire import Advert, encode_adverts
+
+    router = DsdvRouter(1)
+
+    def dump(*adverts):
+        frame = encode_adverts(10, [Advert(*a) for a in adverts])[0]
+        router.on_packet(1.0, Packet(3, BROADCAST, int(Kind.DSDV_FULL), 1, 1, frame))
+        return router.two_hop[3]
+
+    assert dump((3, 0, 10), (5, 1, 4), (6, 1, 8), (7, 2, 2)) == {5, 6}
+    assert dump((3, 0, 12), (5, 2, 6), (7, 1, 2)) == {6, 7}       # 6 not mentioned: kept
+    assert dump((3, 0, 14), (6, 255, 9)) == {7}                   # broken: gone
+    # Advertised both ways in one frame (no router sends that): a neighbour.
+    assert dump((3, 0, 16), (8, 2, 4), (8, 1, 4)) == {7, 8}

@@ -335,19 +335,14 @@ class DsdvRouter:
         self.table[neighbour] = RouteEntry(neighbour, neighbour, 1, best)
         self._dirty = True
 
-    def _learn_neighbourhood(self, neighbour: int, adverts: tuple[Advert, ...]) -> None:
-        """A neighbour's one-hop adverts are its neighbour set (for flood pruning)."""
+    def _learn_neighbourhood(self, neighbour: int, ones: frozenset[int],
+                             others: frozenset[int]) -> None:
+        """A neighbour's one-hop adverts are its neighbour set (for flood pruning):
+        ``ones`` it advertises at one hop, ``others`` at more (``_neighbour_set``)."""
         known = self.two_hop.setdefault(neighbour, set())
-        size = len(known)
-        added = False
-        for dest, hops, _ in adverts:
-            if hops == 1:
-                if dest not in known:
-                    known.add(dest)
-                    added = True
-            elif dest != neighbour:
-                known.discard(dest)
-        if added or len(known) != size:
+        if not ones <= known or not known.isdisjoint(others):
+            known |= ones
+            known -= others
             self._view_changed()
 
     def _view_changed(self) -> None:
@@ -545,9 +540,10 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
                 outs[i] = heartbeat
         elif kind is _FULL or kind is _INCREMENTAL:
             seq, adverts = wire.decode_adverts(packet.payload)
+            ones, others = _neighbour_set(source, adverts)
             for _, r in taking:
                 r._heard(t, source, None, seq)
-                r._learn_neighbourhood(source, adverts)
+                r._learn_neighbourhood(source, ones, others)
                 r._merge(source, adverts)
         elif kind is _DATA:
             for i, r in taking:
@@ -574,3 +570,13 @@ def _per_router(router: DsdvRouter, t: float, packet: Packet, kind: Kind,
 def _count_all(routers: Sequence[DsdvRouter], key: str) -> None:
     for router in routers:
         router._count(key)
+
+
+def _neighbour_set(neighbour: int, adverts: tuple[Advert, ...]) -> tuple[
+        frozenset[int], frozenset[int]]:
+    """The destinations a neighbour advertises at one hop (its neighbours) and at more
+    (not its neighbours; itself excepted), once per frame for all its receivers. A
+    destination advertised both ways in one frame counts as a neighbour."""
+    ones = frozenset([dest for dest, hops, _ in adverts if hops == 1])
+    others = frozenset([dest for dest, hops, _ in adverts if hops != 1 and dest != neighbour])
+    return ones, others - ones
