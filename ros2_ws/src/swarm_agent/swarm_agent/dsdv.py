@@ -299,7 +299,7 @@ class DsdvRouter:
         return 1.0 - heard / sent if sent > 0.0 else 0.0
 
     def _extra_copies(self) -> float:
-        """k of the module docstring for the loss seen now."""
+        """k of ``flood_relay`` for the loss seen now."""
         return flood_relay.extra_copies(self.config.flood_extra_copies, self.link_loss(),
                                         self.config.flood_miss_target)
 
@@ -350,7 +350,7 @@ class DsdvRouter:
         self._higher = None
 
     def _should_relay(self, previous_hop: int, origin: int, flood_id: int) -> bool:
-        """Relay unless the coverage condition (module docstring) lets this node be silent."""
+        """Relay unless the coverage condition (``flood_relay``) lets this node be silent."""
         silent = self._silent_after.get(previous_hop)
         if silent is None:
             if self._higher is None:   # neighbours with a higher id and a known neighbourhood
