@@ -35,7 +35,7 @@ def instrument(cost: dict, count: dict, sent: dict, why: dict) -> None:
     receive, step, rest = headless.receive, AgentBrain.step, AgentBrain.rest
 
     def timed_receive(t, packet, brains):
-        kind = KINDS.get(packet.kind, 'flood')
+        kind = KINDS.get(packet.kind, 'other kinds')
         if kind == 'flood':
             key = wire.routed_key(packet.payload)
             duplicates = sum(key in brain.router._seen for brain in brains)

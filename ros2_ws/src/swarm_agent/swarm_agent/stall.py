@@ -99,7 +99,7 @@ class StallDetector:
     def _open(self, t: float) -> None:
         """Start a window to judge at ``t``."""
         self._since = t
-        self._sum = np.zeros(2)
+        self._sum.fill(0.0)
         self._samples = 0
 
     def stands(self, t: float, taken: bool) -> None:

@@ -226,8 +226,8 @@ class RadioMedium:
         links[dead, :] = False
         links[:, dead] = False
         self._links = links
-        # Each robot's neighbours in id order: the links' columns row by row, cut at the
-        # row ends (a flatnonzero per row was 4x slower at 50 robots, 10 times a second).
+        # Each robot's neighbours in id order: one nonzero over the link matrix, its
+        # columns cut at the row ends (a quarter of the time of one search per row).
         rows, cols = np.nonzero(links)
         heard = np.asarray(self.ids, dtype=np.int64)[cols].tolist()
         ends = np.cumsum(np.bincount(rows, minlength=n)).tolist()
