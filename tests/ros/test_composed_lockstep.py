@@ -84,7 +84,7 @@ def test_every_clock_advance_is_answered_by_every_agent(tmp_path):
         # clock, fed by its own /clock subscription, while the agents' clocks followed a
         # second one; a timer could fire on a time the agents had not read yet. One time
         # source now feeds both (a race between two DDS readers, hence checked directly).
-        source = container._time_source
+        source = container._sim_time
         agent_clocks = {id(a.get_clock()) for a in container.agents.values()}
         stepping = [tmr for tmr in container.timers if tmr.clock is not container.get_clock()]
         assert len(stepping) == 4                 # control, state, routes, status line
@@ -144,22 +144,30 @@ def test_a_composed_process_takes_its_agents_inputs_from_one_sensor_batch(tmp_pa
         topics = {name for name, _ in probe.get_topic_names_and_types()}
         assert not any(t.endswith(('/imu', '/ranges', '/proximity', '/radio/rx', '/cmd_force'))
                        for t in topics), topics
-        # Only the beacon (its GPS subscription) is in the executor with the container
-        # and the probe: the others have nothing to wait for.
-        assert set(executor.get_nodes()) == {container, probe, container.agents[0]}
+        # No agent is in the executor (the beacon's GPS comes in the batch too): only the
+        # container and the probe.
+        assert not any(t.endswith('/gps') for t in topics), topics
+        assert set(executor.get_nodes()) == {container, probe}
+        assert spin_until(executor, lambda: batch.get_subscription_count() > 0, 10.0)
+        # A batch steps the agents (no timer does): an empty one, as a holding world sends.
+        batch.publish(sensor_batch_to_msg(Time(sec=2)))
         assert spin_until(executor, lambda: bool(commands), 10.0)
         first = commands[0]
         assert sorted(first.ids) == [0, 1, 2]
         assert len(first.fx) == len(first.fy) == len(first.stamps) == 3
-        assert spin_until(executor, lambda: batch.get_subscription_count() > 0, 10.0)
         before = agent2.brain.localizer.velocity.copy()
+        beacon = container.agents[0].brain.localizer
+        assert abs(beacon.position).max() < 0.05
         batch.publish(sensor_batch_to_msg(
             Time(sec=3), imu_ids=[2], imu_accel=[[2.0, 0.0]], imu_noise_std=0.01,
             ranges=[RangeArray(receiver=1, ranges=[RangeMeasurement(
                 beacon_id=0, range=4.5, stddev=0.1)])],
             prox_ids=[1, 7], prox_counts=[1, 0], prox_offsets=[[4.0, 0.0]], prox_radii=[0.6],
-            prox_stddev=0.02, rx=[(3.0, heartbeat, [1])]))
+            prox_stddev=0.02, rx=[(3.0, heartbeat, [1])], gps=[(0, 0.5, -0.5, 0.2)]))
         assert spin_until(executor, lambda: 0 in agent1.brain.neighbours, 10.0)
+        # The beacon's GPS fix pulled its estimate from (0, 0) towards (0.5, -0.5).
+        assert spin_until(executor, lambda: beacon.position[0] > 0.1, 10.0)
+        assert beacon.position[1] < -0.1
         assert agent1.brain.neighbours[0].info == info          # radio delivery
         assert agent1.brain._ranges == [(0, 4.5, 0.1)]          # ranges
         offsets, radii = agent1.brain._proximity                # proximity
@@ -169,3 +177,44 @@ def test_a_composed_process_takes_its_agents_inputs_from_one_sensor_batch(tmp_pa
         batch.publish(sensor_batch_to_msg(Time(sec=4), imu_ids=[2], imu_accel=[[2.0, 0.0]]))
         assert spin_until(
             executor, lambda: agent2.brain.localizer.velocity[0] > before[0], 10.0)
+
+
+def test_with_sim_time_each_batch_is_the_agents_clock_and_one_control_tick(tmp_path):
+    """A batch at every world step (sim_node with sensor_batch): every agent answers each
+    new step once, stamped with the step's time; a held world's repeat adds nothing; the
+    container has no /clock subscription for its agents."""
+    from swarm_agent.conversions import sensor_batch_to_msg
+    from swarm_msgs.msg import ForceBatch, SensorBatch
+
+    robots = [RobotSpec(i, 1 + i % 3, i < 2, 10.0 * i, 0.0) for i in range(4)]
+    with _container(tmp_path, robots, use_sim_time=True, sensor_batch=True) as (
+            executor, container, probe):
+        # The container node's own clock keeps rclpy's /clock subscription (logging);
+        # nothing else in the process listens to /clock.
+        clock_subs = [s for s in container.subscriptions if s.topic_name == '/clock']
+        assert len(clock_subs) <= 1
+        assert not any(s.topic_name == '/clock' for a in container.agents.values()
+                       for s in a.subscriptions)
+        batch = probe.create_publisher(SensorBatch, '/swarm/sensor_batch',
+                                       QoSProfile(**qos.RADIO))
+        commands = []
+        probe.create_subscription(ForceBatch, '/swarm/cmd_batch', commands.append,
+                                  QoSProfile(**qos.COMMAND_BATCH))
+        assert spin_until(executor, lambda: batch.get_subscription_count() > 0, 10.0)
+        assert spin_until(executor, lambda: probe.count_publishers('/swarm/cmd_batch') > 0,
+                          10.0)
+        # 20 ms steps, each published once, then a repeat of the last (a held clock).
+        steps = [Time(sec=0, nanosec=20_000_000 * k) for k in range(10)]
+        for stamp in steps + [steps[-1]]:
+            sent = len(commands)
+            batch.publish(sensor_batch_to_msg(stamp))
+            spin_until(executor, lambda sent=sent: len(commands) > sent, 2.0)
+        spin_until(executor, lambda: False, 0.3)
+        assert len(commands) == len(steps)
+        for stamp, command in zip(steps, commands):
+            assert sorted(command.ids) == [0, 1, 2, 3]
+            expected = stamp.sec + stamp.nanosec * 1e-9
+            assert list(command.stamps) == pytest.approx([expected] * 4, abs=1e-9)
+            assert command.header.stamp == stamp
+        assert all(abs(a.get_clock().now().nanoseconds - 180_000_000) == 0
+                   for a in container.agents.values())

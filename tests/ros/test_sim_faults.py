@@ -272,7 +272,7 @@ def test_a_composed_world_sends_proximity_in_its_sensor_batch(tmp_path):
         assert _until(executor, lambda: sum(len(b.prox_ids) > 0 for b in batches) >= 2)
         topics = {name for name, _ in probe.get_topic_names_and_types()}
         assert not any(t.endswith('/proximity') for t in topics), topics
-        _, _, by_id, _ = sensor_batch_from_msg(next(b for b in batches if b.prox_ids))
+        by_id = sensor_batch_from_msg(next(b for b in batches if b.prox_ids)).proximity
         assert sorted(by_id) == [0, 1]
         np.testing.assert_allclose(by_id[0][0], [[0.0, 2.5]], atol=0.1)
         np.testing.assert_allclose(by_id[1][0], [[0.0, -2.5]], atol=0.1)

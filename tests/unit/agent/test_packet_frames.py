@@ -97,9 +97,11 @@ def test_a_sensor_batch_carries_each_robots_part_of_a_step():
                               imu_noise_std=0.01, ranges=ranges, prox_ids=[4, 11, 9],
                               prox_counts=[2, 0, 1],
                               prox_offsets=[[1.5, -0.5], [0.0, 2.0], [-1.5, 0.5]],
-                              prox_radii=[0.4, 0.15, 0.3], prox_stddev=0.02, rx=grouped)
-    imu, got_ranges, scans, rx = sensor_batch_from_msg(msg)
+                              prox_radii=[0.4, 0.15, 0.3], prox_stddev=0.02, rx=grouped,
+                              gps=[(1, -3.0, 4.5, 2.0)])
+    imu, got_ranges, scans, rx, gps = sensor_batch_from_msg(msg)
     assert imu == [(4, 0.1, -0.2), (9, 0.0, 0.3)] and msg.imu_noise_std == 0.01
+    assert gps == [(1, -3.0, 4.5, 2.0)]
     assert got_ranges[0].receiver == 4 and got_ranges[0].ranges[0].range == 3.5
     assert sorted(scans) == [4, 9, 11] and msg.prox_stddev == 0.02
     assert scans[4][0].tolist() == [[1.5, -0.5], [0.0, 2.0]]
@@ -116,7 +118,7 @@ def test_a_sensor_batch_carries_each_robots_part_of_a_step():
     # Each frame travels once, whatever the number of its receivers.
     assert len(msg.rx_frames) == 6 and len(msg.frames) == len(pack_frames(frames))
     empty = sensor_batch_to_msg(stamp)            # nothing due this step
-    assert sensor_batch_from_msg(empty) == ([], [], {}, [])
+    assert sensor_batch_from_msg(empty) == ([], [], {}, [], [])
     # Arrays that disagree, or a receiver's bytes cut short, are refused, never misread.
     every = [(s, f, [4]) for s, f in frames]
     short = sensor_batch_to_msg(stamp, rx=every)
@@ -135,6 +137,10 @@ def test_a_sensor_batch_carries_each_robots_part_of_a_step():
     lopsided.imu_ay = [0.2, 0.3]
     with pytest.raises(PacketError, match='1 imu ids but 1 x and 2 y'):
         sensor_batch_from_msg(lopsided)
+    fixless = sensor_batch_to_msg(stamp, gps=[(1, 0.0, 0.0, 2.0)])
+    fixless.gps_std = []
+    with pytest.raises(PacketError, match='1 gps ids but 1 x, 1 y and 0 std'):
+        sensor_batch_from_msg(fixless)
 
 
 def test_a_proximity_scan_round_trips_and_a_lopsided_one_is_refused():

@@ -55,8 +55,9 @@ def test_each_living_robot_gets_its_messages():
 def test_a_composed_world_gets_one_batch_or_none_when_nothing_is_due():
     readings = _readings()
     batch = sensor_batch(readings, IDS, imu_std=0.01, proximity_std=0.02)
-    imu, _, proximity, rx = sensor_batch_from_msg(batch)
+    imu, _, proximity, rx, gps = sensor_batch_from_msg(batch)
     assert imu == [(4, 0.1, 0.2), (7, 0.3, 0.4)]
+    assert gps == [(4, 1.0, 2.0, 2.0)]        # the beacon's fix rides in the batch too
     assert sorted(proximity) == [4, 7] and sorted({r for _, _, rs in rx for r in rs}) == [7, 9]
     assert sensor_batch(Readings(1.0, np.array([0])), IDS, 0.01, 0.02) is None
 

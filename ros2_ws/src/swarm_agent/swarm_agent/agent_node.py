@@ -222,8 +222,9 @@ class AgentNode(Node):
         its owner calls ``on_control``, ``publish_state`` and ``publish_routes`` at the
         node's ``control_rate_hz``, ``state_rate_hz`` and ``routes_rate_hz``
         (composed_node: one timer of each drives every agent of the process). With
-        ``shared_inputs`` it subscribes to none of imu, ranges, proximity, radio/rx, shape
-        and goals: its owner hands them over (``on_imu_sample``, ``on_range_array``,
+        ``shared_inputs`` it subscribes to none of imu, gps, ranges, proximity, radio/rx,
+        shape and goals: its owner hands them over (``on_imu_sample``, ``on_gps_fix``,
+        ``on_range_array``,
         ``on_proximity_scan``, ``on_radio_frames``, ``on_shape``, ``on_goals``;
         composed_node with the world's /swarm/sensor_batch). ``command_sink(agent id,
         stamp s, fx, fy)`` takes the force commands instead of the cmd_force topic
@@ -300,7 +301,7 @@ class AgentNode(Node):
             lambda transform: self._tf.publish(TFMessage(transforms=[transform])))
         self._routes = lean_publisher(self, RouteTable, me + 'routes', state)
 
-        if p['is_beacon']:
+        if p['is_beacon'] and not shared_inputs:
             lean_subscription(self, PoseWithCovarianceStamped, me + 'gps', self._on_gps, sensor)
         if p['external_pose']:
             lean_subscription(self, PoseStamped, me + 'pose', self._on_pose, sensor)
@@ -360,8 +361,11 @@ class AgentNode(Node):
 
     def _on_gps(self, msg: PoseWithCovarianceStamped) -> None:
         pos = msg.pose.pose.position
-        std = float(np.sqrt(max(msg.pose.covariance[0], 1e-12)))
-        self.brain.on_gps(self._now(), np.array([pos.x, pos.y]), std)
+        self.on_gps_fix(pos.x, pos.y, float(np.sqrt(max(msg.pose.covariance[0], 1e-12))))
+
+    def on_gps_fix(self, x: float, y: float, std: float) -> None:
+        """A beacon's absolute fix (m, map frame; ``std`` m per axis), taken now."""
+        self.brain.on_gps(self._now(), np.array([x, y]), std)
 
     def _on_pose(self, msg: PoseStamped) -> None:
         pos = msg.pose.position

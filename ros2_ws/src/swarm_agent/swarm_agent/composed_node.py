@@ -18,7 +18,8 @@ process in the executor, under 10 % in the agents' callbacks):
   that step them, so an agent never reads an older time than the tick it serves.
 - One timer steps every agent's inner loop (``AgentNode.on_control``), one publishes
   every agent's state, one every agent's routes and one logs every agent's status line,
-  instead of four timers per agent.
+  instead of four timers per agent. With ``sensor_batch`` the world's batch steps them
+  instead (below).
 - The agents have no parameter or type-description services (seven services each) and
   their per-robot topics have no default QoS event handlers (``swarm_common.ros_support``).
   Their parameters are the container's (listed by ``ros2 param dump
@@ -27,9 +28,13 @@ process in the executor, under 10 % in the agents' callbacks):
   world sends one ``swarm/sensor_batch`` (swarm_msgs/SensorBatch) per step, which the
   container hands to its agents, and the agents' commands of a control step leave in one
   ``swarm/cmd_batch`` (swarm_msgs/ForceBatch); shape and goals come through the
-  container too. The agents then subscribe to nothing but beacon GPS, and an agent
-  with nothing to wait for is not added to the executor at all (its publishers work
-  without it; 9 nodes per wait instead of 51 for the thesis scenario).
+  container too (beacons' GPS fixes included). The agents then subscribe to nothing and
+  are not added to the executor at all (their publishers work without it): the
+  container is the one node of its wait set. The world sends
+  a batch at every step and with every repeat of a held clock, so the batch is the
+  agents' clock (its stamp, with ``use_sim_time``) and its arrival their control tick:
+  the sensors of a step reach the brains before the step that answers it, in one wait
+  of the executor instead of one for /clock, one for the batch and one for a timer.
 - The agents' radio frames leave in one batch per ``radio_tx_hz`` period, flushed in the
   control callback right after the step that produced them.
 
@@ -45,6 +50,7 @@ destroyed, to emulate robots dying mid-run (self-repair experiments).
 
 from __future__ import annotations
 
+import math
 import sys
 
 from geometry_msgs.msg import TransformStamped
@@ -55,6 +61,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.time_source import TimeSource
+from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Int32MultiArray
 from tf2_msgs.msg import TFMessage
 import yaml
@@ -68,7 +75,7 @@ from swarm_agent.agent_node import (
     set_brain_parameters,
 )
 from swarm_agent.brain_config import BrainConfigError
-from swarm_agent.conversions import sensor_batch_from_msg, stamp_seconds
+from swarm_agent.conversions import sensor_batch_from_msg, SensorInputs, stamp_seconds
 from swarm_agent.packet import PacketError
 from swarm_agent.reception import receive
 from swarm_common import qos
@@ -124,23 +131,29 @@ class ComposedAgents(Node):
             robots = [r for r in robots if int(r['id']) in set(only)]
         self.executor_ = executor
         self.agents: dict[int, AgentNode] = {}
-        # One /clock subscription for all: the container's time source drives every
-        # agent's clock (the agents themselves run with use_sim_time false) and the clock
-        # of the container's timers that step them. Not the container node's own clock:
-        # that one follows its own /clock subscription, and an agent stepped by a timer on
-        # it could read a time one message older than the timer's. Measured: a parked
-        # agent then skips its keepalive command, the world holds its clock for it and
-        # the timer never fires again; 10 s (wall) stalls until the world gives up on it.
-        self._time_source = TimeSource(node=self) if use_sim_time else None
+        # One clock for all: the container's time source drives every agent's clock (the
+        # agents themselves run with use_sim_time false) and the clock of the container's
+        # timers that step them. Not the container node's own clock: that one follows
+        # its own /clock subscription, and an agent stepped by a timer on it could read a
+        # time one message older than the timer's (measured: a parked agent then skipped
+        # its keepalive command and the world held its clock for it for 10 s, wall).
+        # With sensor_batch the world's batch is that clock (no /clock subscription) and
+        # its arrival steps the agents (_on_batch): one wait of the executor per step.
+        self._sim_time = None
         timer_clock = self.get_clock()
-        if self._time_source is not None:
+        if use_sim_time:
+            self._sim_time = TimeSource() if p['sensor_batch'] else TimeSource(node=self)
+            self._sim_time.ros_time_is_active = True
             timer_clock = ROSClock()
-            self._time_source.attach_clock(timer_clock)
+            self._sim_time.attach_clock(timer_clock)
         # One batch of every agent's radio frames per period (20 messages a second for
         # the whole swarm instead of one per frame per agent).
         for rate in ('radio_tx_hz', 'control_rate_hz', 'state_rate_hz', 'routes_rate_hz'):
             if not p[rate] > 0.0:
                 raise BrainConfigError(f'parameter {rate} must be above 0 Hz, got {p[rate]}')
+        self._control_period = 1.0 / p['control_rate_hz']
+        self._next_control = 0.0   # time of the next batch-driven step (sensor_batch)
+        self._sim_time_s = 0.0     # the last batch's stamp (s)
         self._radio = RadioBatcher(
             self.create_publisher(RadioPacketArray, 'radio/tx', QoSProfile(**qos.RADIO)),
             1.0 / p['radio_tx_hz'])
@@ -185,13 +198,14 @@ class ComposedAgents(Node):
                              tf_sink=self._transforms.append,
                              parameter_overrides=overrides, context=self.context,
                              start_parameter_services=False)
-            if self._time_source is not None:
-                self._time_source.attach_clock(node.get_clock())
+            if self._sim_time is not None:
+                self._sim_time.attach_clock(node.get_clock())
             self.agents[agent_id] = node
             if _has_callbacks(node):
                 executor.add_node(node)
         self._timer_clock = timer_clock
-        self.create_timer(1.0 / p['control_rate_hz'], self._on_control, clock=timer_clock)
+        if not p['sensor_batch']:
+            self.create_timer(self._control_period, self._on_control, clock=timer_clock)
         self.create_timer(1.0 / p['state_rate_hz'], self._publish_states, clock=timer_clock)
         self.create_timer(1.0 / p['routes_rate_hz'], lambda: self._each('publish_routes'),
                           clock=timer_clock)
@@ -250,18 +264,35 @@ class ComposedAgents(Node):
             self._cmd_batch.publish(msg)
 
     def _on_batch(self, msg: SensorBatch) -> None:
-        """Hand each agent of this process its part of the world's step."""
+        """The world's step: its time (with sim time), each agent's part of it, then,
+        when a control period is due, every agent's inner loop (``_on_control``)."""
+        stamp = stamp_seconds(msg.header.stamp)
+        if self._sim_time is not None and stamp >= self._sim_time_s:
+            self._sim_time_s = stamp   # a held world repeats its time: never back
+            self._sim_time.clock_callback(Clock(clock=msg.header.stamp))
         try:
-            imu, ranges, proximity, rx = sensor_batch_from_msg(msg)
+            self._deliver(stamp, sensor_batch_from_msg(msg))
         except PacketError as exc:
             self.get_logger().error(f'dropped a corrupt /swarm/sensor_batch: {exc}',
                                     throttle_duration_sec=10.0)
-            return
-        stamp = stamp_seconds(msg.header.stamp)
+        t = self._timer_clock.now().nanoseconds * 1e-9
+        # Due as a timer of the control period on this clock would be (rcl skips missed
+        # periods); half a microsecond of slack for sums of float steps.
+        if t >= self._next_control - 5e-7:
+            self._next_control = (math.floor(t / self._control_period + 5e-7) + 1) \
+                * self._control_period
+            self._on_control()
+
+    def _deliver(self, stamp: float, inputs: SensorInputs) -> None:
+        """Hand each agent of this process its part of a batch stamped ``stamp`` (s)."""
         agents = self.agents
+        imu, ranges, proximity, rx, gps = inputs
         for agent_id, ax, ay in imu:
             if agent_id in agents:
                 agents[agent_id].on_imu_sample(stamp, ax, ay)
+        for agent_id, x, y, std in gps:
+            if agent_id in agents:
+                agents[agent_id].on_gps_fix(x, y, std)
         for array in ranges:
             if array.receiver in agents:
                 agents[array.receiver].on_range_array(array)

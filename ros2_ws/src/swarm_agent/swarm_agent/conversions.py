@@ -29,6 +29,7 @@ from array import array
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 import math
+from typing import NamedTuple
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, Quaternion, TransformStamped, Twist
@@ -112,7 +113,18 @@ def proximity_from_msg(msg: ProximityArray) -> tuple[np.ndarray, np.ndarray]:
     return offsets, np.array(msg.radius, dtype=float)
 
 
+class SensorInputs(NamedTuple):
+    """A SensorBatch's contents (``sensor_batch_from_msg``)."""
+
+    imu: list[tuple[int, float, float]]           # (robot id, ax, ay) m/s^2, map frame
+    ranges: list[RangeArray]
+    proximity: dict[int, tuple[np.ndarray, np.ndarray]]   # id: offsets (k, 2), radii (k,)
+    rx: list[tuple[float, Packet, list[int]]]     # (stamp, frame, receivers), by arrival
+    gps: list[tuple[int, float, float, float]]    # (beacon id, x, y, std) m
+
+
 def sensor_batch_to_msg(stamp: Time, *, imu_ids=(), imu_accel=None, imu_noise_std: float = 0.0,
+                        gps: Sequence[tuple[int, float, float, float]] = (),
                         ranges: Iterable[RangeArray] = (),
                         prox_ids=(), prox_counts=(), prox_offsets=None, prox_radii=None,
                         prox_stddev: float = 0.0,
@@ -120,7 +132,8 @@ def sensor_batch_to_msg(stamp: Time, *, imu_ids=(), imu_accel=None, imu_noise_st
                         ) -> SensorBatch:
     """One step's sensor data and radio deliveries of many robots -> swarm_msgs/SensorBatch.
 
-    ``imu_accel`` (len(imu_ids), 2) map-frame accelerations; ``rx`` the deliveries in
+    ``imu_accel`` (len(imu_ids), 2) map-frame accelerations; ``gps`` beacons' fixes
+    ``(id, x, y, std)``; ``rx`` the deliveries in
     arrival order, grouped by frame as the medium makes them
     (``RadioMedium.deliver_grouped``): ``(stamp, packet, receivers)``. Each frame is
     packed once; each receiver gets the indices of its frames, in arrival order.
@@ -133,6 +146,11 @@ def sensor_batch_to_msg(stamp: Time, *, imu_ids=(), imu_accel=None, imu_noise_st
         msg.imu_ax = array('d', accel[:, 0].tolist())
         msg.imu_ay = array('d', accel[:, 1].tolist())
         msg.imu_noise_std = float(imu_noise_std)
+    if gps:
+        ids, xs, ys, stds = zip(*gps)
+        msg.gps_ids = array('H', [int(i) for i in ids])
+        msg.gps_x, msg.gps_y = array('d', map(float, xs)), array('d', map(float, ys))
+        msg.gps_std = array('d', map(float, stds))
     msg.ranges = list(ranges)
     if len(prox_ids):
         # Scans grouped by observer: robot prox_ids[k] saw the next prox_counts[k] rows
@@ -158,16 +176,17 @@ def sensor_batch_to_msg(stamp: Time, *, imu_ids=(), imu_accel=None, imu_noise_st
     return msg
 
 
-def sensor_batch_from_msg(msg: SensorBatch) -> tuple[
-        list[tuple[int, float, float]], list[RangeArray],
-        dict[int, tuple[np.ndarray, np.ndarray]], list[tuple[float, Packet, list[int]]]]:
-    """swarm_msgs/SensorBatch -> (imu samples (id, ax, ay), range arrays, proximity scans
-    by observer (offsets (k, 2), radii (k,)), radio deliveries grouped by frame in arrival
-    order, ``(stamp, packet, receivers)`` as ``sensor_batch_to_msg`` takes them). Raises
-    PacketError when the imu, proximity or radio arrays disagree or a frame is corrupt."""
+def sensor_batch_from_msg(msg: SensorBatch) -> SensorInputs:
+    """swarm_msgs/SensorBatch -> its SensorInputs (the radio deliveries grouped by frame
+    in arrival order, ``(stamp, packet, receivers)``, as ``sensor_batch_to_msg`` takes
+    them). Raises PacketError when the imu, gps, proximity or radio arrays disagree or a
+    frame is corrupt."""
     if not len(msg.imu_ax) == len(msg.imu_ay) == len(msg.imu_ids):
         raise PacketError(f'{len(msg.imu_ids)} imu ids but {len(msg.imu_ax)} x and '
                           f'{len(msg.imu_ay)} y accelerations')
+    if not len(msg.gps_ids) == len(msg.gps_x) == len(msg.gps_y) == len(msg.gps_std):
+        raise PacketError(f'{len(msg.gps_ids)} gps ids but {len(msg.gps_x)} x, '
+                          f'{len(msg.gps_y)} y and {len(msg.gps_std)} std values')
     rows = len(msg.prox_x)
     if len(msg.prox_ids) != len(msg.prox_counts) or sum(msg.prox_counts) != rows or \
             not rows == len(msg.prox_y) == len(msg.prox_radius):
@@ -198,7 +217,8 @@ def sensor_batch_from_msg(msg: SensorBatch) -> tuple[
         offset += count
     rx = [(stamp, packet, receivers)
           for (stamp, packet), receivers in zip(distinct, heard_by) if receivers]
-    return imu, list(msg.ranges), proximity, rx
+    gps = list(zip((int(i) for i in msg.gps_ids), msg.gps_x, msg.gps_y, msg.gps_std))
+    return SensorInputs(imu, list(msg.ranges), proximity, rx, gps)
 
 
 def snapshot_to_state(snap: Snapshot, stamp: Time | None = None,

@@ -134,15 +134,17 @@ def robot_messages(readings: Readings, ids: list[int], imu_std: float, proximity
 
 def sensor_batch(readings: Readings, ids: list[int], imu_std: float, proximity_std: float
                  ) -> SensorBatch | None:
-    """imu, ranges, proximity and radio deliveries of every robot in one message (None:
-    none due); GPS fixes travel per beacon."""
+    """imu, gps, ranges, proximity and radio deliveries of every robot in one message
+    (None: none due)."""
     if (readings.rx is None and readings.imu is None and readings.ranges is None
-            and readings.proximity is None):
+            and readings.proximity is None and readings.gps is None):
         return None
     stamp, batch = stamp_of(readings.t), {}
     living = readings.living
     if readings.rx is not None:
         batch['rx'] = readings.rx
+    if readings.gps is not None:
+        batch['gps'] = [(ids[i], fix[0], fix[1], std) for i, fix, std in readings.gps]
     if readings.imu is not None:
         batch.update(imu_ids=[ids[i] for i in living], imu_accel=readings.imu[living],
                      imu_noise_std=imu_std)

@@ -19,7 +19,8 @@ Topics (K: a robot id; per-robot topics have no default QoS event handlers,
              within ``proximity_range_m``); ``agent_K/radio/rx`` (swarm_msgs/
              RadioPacketArray, the medium's deliveries since the last batch);
              ``swarm/sensor_batch`` (swarm_msgs/SensorBatch, with ``sensor_batch``: those
-             four topics of every robot in one message per step, for composed agents);
+             five topics of every robot in one message at every step and with every
+             held-clock repeat, empty when nothing was due: composed agents step on it);
              ``swarm/truth`` (swarm_msgs/SwarmTruth, metrics only) and ``/tf`` (the
              truth as ``map -> truth/agent_K/base_link``); ``swarm/markers``
              (visualization_msgs/MarkerArray, ``marker_rate_hz``, 0 turns it off);
@@ -122,7 +123,7 @@ class SimNode(Node):
                           if p['sensor_batch'] else None)
         self.pubs: dict[tuple[str, int], object] = {}   # (kind, robot id): publisher
         kinds = {'gps': sensor, 'imu': imu, 'ranges': sensor, 'rx': radio, 'proximity': sensor}
-        kinds = {k: q for k, q in kinds.items() if (k == 'gps' or not p['sensor_batch'])
+        kinds = {k: q for k, q in kinds.items() if not p['sensor_batch']
                  and (k != 'proximity' or self.world.proximity is not None)}
         for i, r in enumerate(self.fleet):
             for kind, profile in kinds.items():
@@ -246,18 +247,27 @@ class SimNode(Node):
                                           + self.pacer.describe(held, now),
                                           throttle_duration_sec=5.0)
 
-    def _publish_clock(self, t: float) -> None:
-        self.clock_pub.publish(Clock(clock=conv.stamp_of(t)))
+    def _publish_clock(self, t: float, batch: SensorBatch | None = None) -> None:
+        """/clock at ``t`` and, with ``sensor_batch``, the step's batch (an empty one when
+        no reading was due or the world holds its time): composed agents step on it."""
+        stamp = conv.stamp_of(t)
+        self.clock_pub.publish(Clock(clock=stamp))
+        if self.batch_pub is not None:
+            if batch is None:
+                batch = SensorBatch()
+                batch.header.stamp = stamp
+            self.batch_pub.publish(batch)
         self._clock_wall = time.monotonic()
 
     def _publish(self, readings: Readings) -> None:
         world, t, p = self.world, readings.t, self.params
-        self._publish_clock(t)
         imu_std, prox_std = world.imu.noise_std, p['proximity_std']
-        if self.batch_pub is not None:
-            if (batch := conv.sensor_batch(readings, self.ids, imu_std, prox_std)) is not None:
-                self.batch_pub.publish(batch)
-            readings.rx = readings.imu = readings.ranges = readings.proximity = None
+        if self.batch_pub is None:
+            self._publish_clock(t)
+        else:
+            self._publish_clock(t, conv.sensor_batch(readings, self.ids, imu_std, prox_std))
+            readings.rx = readings.imu = readings.gps = readings.ranges = None
+            readings.proximity = None
         for kind, agent, msg in conv.robot_messages(readings, self.ids, imu_std, prox_std):
             self.pubs[kind, agent].publish(msg)
         if self._mission_radio is not None and (heard := self._mission_radio.take()):
