@@ -12,10 +12,12 @@ from rclpy.executors import Executor, SingleThreadedExecutor
 
 @contextlib.contextmanager
 def ros_context(make_executor: Callable[..., Executor] = SingleThreadedExecutor,
-                ) -> Iterator[tuple[rclpy.Context, Executor]]:
-    """A fresh rclpy context and an executor on it; shut down on exit."""
+                args: list[str] | None = None) -> Iterator[tuple[rclpy.Context, Executor]]:
+    """A fresh rclpy context (command line ``args``, e.g. ``--ros-args -p name:=value``
+    as ``ros2 run`` passes them to every node of the process) and an executor on it;
+    shut down on exit."""
     context = rclpy.Context()
-    rclpy.init(context=context)
+    rclpy.init(args=args, context=context)
     executor = make_executor(context=context)
     try:
         yield context, executor

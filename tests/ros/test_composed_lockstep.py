@@ -21,7 +21,6 @@ rclpy = pytest.importorskip('rclpy')
 
 from builtin_interfaces.msg import Time  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from spin import ros_context, spin_until  # noqa: E402
@@ -39,13 +38,16 @@ STEPS_PER_ADVANCE = 10
 
 @contextlib.contextmanager
 def _container(tmp_path, robots, **params):
-    """ComposedAgents over ``robots`` and a 'world' probe node, spun by one executor."""
+    """ComposedAgents over ``robots`` and a 'world' probe node, spun by one executor.
+    ``params`` are given on the command line, as the launch plan gives them: they reach
+    every node of the process (the agents' too) unless a node overrides them."""
     fleet_file = tmp_path / 'fleet.yaml'
     save_fleet(fleet_file, robots)
-    with ros_context(make_executor) as (context, executor):
-        container = ComposedAgents(executor, context=context, parameter_overrides=[
-            Parameter(name, value=value)
-            for name, value in {'fleet_file': str(fleet_file), **params}.items()])
+    args = ['--ros-args', '-p', f'fleet_file:={fleet_file}'] + [
+        arg for name, value in params.items()
+        for arg in ('-p', f'{name}:={str(value).lower() if isinstance(value, bool) else value}')]
+    with ros_context(make_executor, args) as (context, executor):
+        container = ComposedAgents(executor, context=context)
         executor.add_node(container)
         probe = rclpy.create_node('world', context=context)
         executor.add_node(probe)
@@ -91,6 +93,11 @@ def test_every_clock_advance_is_answered_by_every_agent(tmp_path):
         timer_clocks = {id(tmr.clock) for tmr in stepping}
         assert len(timer_clocks) == 1
         assert agent_clocks | timer_clocks <= {id(c) for c in source._associated_clocks}
+        # use_sim_time on the command line reaches every node of the process; the agents
+        # still do not subscribe to /clock (a hundred subscriptions would each take
+        # every clock message: measured, 1,600 callbacks a second for 100 agents).
+        assert not any(s.topic_name == '/clock' for a in container.agents.values()
+                       for s in a.subscriptions)
         # Start-up: advance until every agent has commanded once (discovery, first timers).
         k = 0
         deadline = time.monotonic() + 30.0

@@ -50,6 +50,7 @@ destroyed, to emulate robots dying mid-run (self-repair experiments).
 
 from __future__ import annotations
 
+from array import array
 import math
 import sys
 
@@ -187,6 +188,9 @@ class ComposedAgents(Node):
                 Parameter('state_rate_hz', value=float(p['state_rate_hz'])),
                 Parameter('routes_rate_hz', value=float(p['routes_rate_hz'])),
                 Parameter('start_type_description_service', value=False),
+                # The container's clock drives the agent's (above); use_sim_time given on
+                # the command line would reach this node too and subscribe it to /clock.
+                Parameter('use_sim_time', value=False),
             ] + [Parameter(name, value=value) for name, value in settings.items()
                  # only what was set on the container: a params file's /** section
                  # reaches each agent node directly
@@ -259,7 +263,9 @@ class ComposedAgents(Node):
             msg = ForceBatch()
             msg.header.stamp = now.to_msg()
             ids, stamps, fx, fy = zip(*self._commands)
-            msg.ids, msg.stamps, msg.fx, msg.fy = list(ids), list(stamps), list(fx), list(fy)
+            # Arrays, which rosidl takes without checking each item.
+            msg.ids = array('H', ids)
+            msg.stamps, msg.fx, msg.fy = array('d', stamps), array('d', fx), array('d', fy)
             self._commands.clear()
             self._cmd_batch.publish(msg)
 
@@ -293,9 +299,9 @@ class ComposedAgents(Node):
         for agent_id, x, y, std in gps:
             if agent_id in agents:
                 agents[agent_id].on_gps_fix(x, y, std)
-        for array in ranges:
-            if array.receiver in agents:
-                agents[array.receiver].on_range_array(array)
+        for measured in ranges:
+            if measured.receiver in agents:
+                agents[measured.receiver].on_range_array(measured)
         for agent_id, (offsets, radii) in proximity.items():
             if agent_id in agents:
                 agents[agent_id].on_proximity_scan(stamp, offsets, radii)

@@ -209,14 +209,18 @@ def sensor_batch_from_msg(msg: SensorBatch) -> SensorInputs:
     if len(msg.rx_frames) and max(msg.rx_frames) >= len(distinct):
         raise PacketError(f'frame index {max(msg.rx_frames)} beyond the {len(distinct)} '
                           'frames sent')
-    refs, offset = list(msg.rx_frames), 0
-    heard_by: list[list[int]] = [[] for _ in distinct]
-    for receiver, count in zip(msg.rx_ids, msg.rx_counts):
-        for k in refs[offset:offset + count]:
-            heard_by[k].append(int(receiver))
-        offset += count
-    rx = [(stamp, packet, receivers)
-          for (stamp, packet), receivers in zip(distinct, heard_by) if receivers]
+    # Each frame's receivers: the deliveries (receiver, frame) stably sorted by frame keep
+    # the receivers' order (a thousand or more deliveries a step for 100 agents).
+    frame_of = np.asarray(msg.rx_frames, dtype=np.int64)
+    receivers = np.repeat(np.asarray(msg.rx_ids, dtype=np.int64),
+                          np.asarray(msg.rx_counts, dtype=np.int64))
+    by_frame = receivers[np.argsort(frame_of, kind='stable')].tolist()
+    ends = np.cumsum(np.bincount(frame_of, minlength=len(distinct))).tolist()
+    rx, start = [], 0
+    for (stamp, packet), end in zip(distinct, ends):
+        if end > start:
+            rx.append((stamp, packet, by_frame[start:end]))
+            start = end
     gps = list(zip((int(i) for i in msg.gps_ids), msg.gps_x, msg.gps_y, msg.gps_std))
     return SensorInputs(imu, list(msg.ranges), proximity, rx, gps)
 
