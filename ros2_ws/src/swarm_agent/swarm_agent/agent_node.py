@@ -460,9 +460,11 @@ class AgentNode(Node):
                 f'{loc.config.max_speed:.1f} m/s (the robot may have driven since)')
 
     # -- outputs
-    def on_control(self) -> None:
-        """One inner-loop step: brain, radio frames, cmd_force and cmd_vel."""
-        now = self.get_clock().now()
+    def on_control(self, now: Time | None = None) -> None:
+        """One inner-loop step: brain, radio frames, cmd_force and cmd_vel; ``now`` is
+        this node's clock's time (composed_node reads it once for all its agents)."""
+        if now is None:
+            now = self.get_clock().now()
         t = now.nanoseconds * 1e-9
         if not self._stepped:
             self._stepped = True

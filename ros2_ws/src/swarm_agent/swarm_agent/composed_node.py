@@ -256,8 +256,11 @@ class ComposedAgents(Node):
         and a world that steps as soon as every command is in delivered them a tick late,
         once per hop of a flood.
         """
-        self._each('on_control')
+        # Every agent's clock follows the container's time source (or the system clock,
+        # without sim time): one reading serves all.
         now = self._timer_clock.now()
+        for node in list(self.agents.values()):
+            node.on_control(now)
         self._radio.flush_if_due(now)
         if self._commands:
             msg = ForceBatch()
