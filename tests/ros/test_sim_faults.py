@@ -257,8 +257,11 @@ def test_the_world_publishes_each_robots_proximity_scan(tmp_path):
 
 
 def test_a_composed_world_sends_proximity_in_its_sensor_batch(tmp_path):
-    """sensor_batch: the scans travel in /swarm/sensor_batch, not on per-robot topics."""
+    """sensor_batch: the scans and the beacons' GPS travel in /swarm/sensor_batch, not on
+    per-robot topics, and a batch goes with every /clock message (composed agents step
+    on it)."""
     from rclpy.qos import QoSProfile
+    from rosgraph_msgs.msg import Clock
 
     from swarm_agent.conversions import sensor_batch_from_msg
     from swarm_common import qos
@@ -266,16 +269,48 @@ def test_a_composed_world_sends_proximity_in_its_sensor_batch(tmp_path):
 
     robots = [RobotSpec(0, 1, True, 0.0, 0.0), RobotSpec(1, 2, True, 0.0, 2.5)]
     with _world(tmp_path, robots, sensor_batch=True) as (executor, sim, probe):
-        batches = []
+        batches, clocks = [], []
         probe.create_subscription(SensorBatch, '/swarm/sensor_batch', batches.append,
                                   QoSProfile(**qos.RADIO))
-        assert _until(executor, lambda: sum(len(b.prox_ids) > 0 for b in batches) >= 2)
+        probe.create_subscription(Clock, '/clock', clocks.append, 100)
+        assert _until(executor, lambda: sum(len(b.prox_ids) > 0 for b in batches) >= 2
+                      and sum(len(b.gps_ids) > 0 for b in batches) >= 2)
         topics = {name for name, _ in probe.get_topic_names_and_types()}
-        assert not any(t.endswith('/proximity') for t in topics), topics
+        assert not any(t.endswith(('/proximity', '/gps')) for t in topics), topics
+        gps = next(sensor_batch_from_msg(b).gps for b in batches if b.gps_ids)
+        assert sorted(i for i, *_ in gps) == [0, 1]
+        # Every clock message heard since the first batch has its batch (the last clock
+        # may be ahead of its batch in flight).
+        stamps = {(b.header.stamp.sec, b.header.stamp.nanosec) for b in batches}
+        first = min(stamps)
+        heard = [(c.clock.sec, c.clock.nanosec) for c in clocks[:-1]]
+        heard = [c for c in heard if c >= first]
+        assert len(heard) >= 5 and set(heard) <= stamps
         by_id = sensor_batch_from_msg(next(b for b in batches if b.prox_ids)).proximity
         assert sorted(by_id) == [0, 1]
         np.testing.assert_allclose(by_id[0][0], [[0.0, 2.5]], atol=0.1)
         np.testing.assert_allclose(by_id[1][0], [[0.0, -2.5]], atol=0.1)
+
+
+def test_a_held_composed_world_repeats_its_time_in_empty_batches(tmp_path):
+    """Holding t = 0 (here for observers that never come), sim_node repeats /clock and
+    with it an empty batch: a composed process steps its agents on the batch, so without
+    it they would never answer the time the world waits at."""
+    from rclpy.qos import QoSProfile
+
+    from swarm_common import qos
+    from swarm_msgs.msg import SensorBatch
+
+    with _world(tmp_path, THREE, sensor_batch=True, truth_subscribers=5,
+                wait_for_agents_s=60.0) as (executor, sim, probe):
+        batches = []
+        probe.create_subscription(SensorBatch, '/swarm/sensor_batch', batches.append,
+                                  QoSProfile(**qos.RADIO))
+        assert _until(executor, lambda: len(batches) >= 3)   # a repeat every 0.25 s
+        assert sim.world.t == 0.0
+        assert all(b.header.stamp.sec == 0 and b.header.stamp.nanosec == 0 for b in batches)
+        assert not any(b.imu_ids or b.prox_ids or b.gps_ids or b.ranges or b.rx_ids
+                       for b in batches)
 
 
 @pytest.mark.parametrize(('name', 'value'), [('proximity_rate_hz', -1.0),
