@@ -44,6 +44,18 @@ def _stop_interrupts() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+def _shutdown() -> None:
+    """``rclpy.try_shutdown()``, which races rclpy's SIGINT handler: that one shuts the
+    context down from a thread of its own, so after an interrupt the context can go
+    between try_shutdown's check and its shutdown (RCLError: rcl_shutdown already
+    called). Shut down either way is what was asked."""
+    try:
+        rclpy.try_shutdown()
+    except Exception:
+        if rclpy.ok():
+            raise
+
+
 def run_node(make_node: Callable[[], N], name: str, args=None,
              executor: Callable[[], Executor] | None = None,
              stop: Callable[[N], None] | None = None) -> None:
@@ -64,12 +76,12 @@ def run_node(make_node: Callable[[], N], name: str, args=None,
             sys.exit(0)
         if isinstance(exc, BAD_INPUT):
             print(f'{name}: {_one_line(exc)}', file=sys.stderr)
-            rclpy.try_shutdown()
+            _shutdown()
             sys.exit(2)
         raise
     except KeyboardInterrupt:
         _stop_interrupts()
-        rclpy.try_shutdown()
+        _shutdown()
         sys.exit(0)
     try:
         rclpy.spin(node, executor=executor() if executor else None)
@@ -93,7 +105,7 @@ def run_node(make_node: Callable[[], N], name: str, args=None,
             except Exception:  # noqa: BLE001 - the context may already be gone
                 pass
         node.destroy_node()
-        rclpy.try_shutdown()
+        _shutdown()
 
 
 def lean_publisher(node, msg_type, topic: str, qos_profile, **kwargs):
