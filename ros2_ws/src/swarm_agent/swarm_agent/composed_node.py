@@ -61,6 +61,7 @@ from rclpy.event_handler import EventHandler
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
+from rclpy.time import Time
 from rclpy.time_source import TimeSource
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Int32MultiArray
@@ -154,7 +155,6 @@ class ComposedAgents(Node):
                 raise BrainConfigError(f'parameter {rate} must be above 0 Hz, got {p[rate]}')
         self._control_period = 1.0 / p['control_rate_hz']
         self._next_control = 0.0   # time of the next batch-driven step (sensor_batch)
-        self._sim_time_s = 0.0     # the last batch's stamp (s)
         self._radio = RadioBatcher(
             self.create_publisher(RadioPacketArray, 'radio/tx', QoSProfile(**qos.RADIO)),
             1.0 / p['radio_tx_hz'])
@@ -248,7 +248,7 @@ class ComposedAgents(Node):
     def _command(self, agent_id: int, stamp: float, fx: float, fy: float) -> None:
         self._commands.append((agent_id, stamp, fx, fy))
 
-    def _on_control(self) -> None:
+    def _on_control(self, now: Time | None = None) -> None:
         """Step every agent's inner loop, then send the radio frames they produced.
 
         In the same callback (as a per-process agent does in its control loop): frames
@@ -258,7 +258,8 @@ class ComposedAgents(Node):
         """
         # Every agent's clock follows the container's time source (or the system clock,
         # without sim time): one reading serves all.
-        now = self._timer_clock.now()
+        if now is None:
+            now = self._timer_clock.now()
         for node in list(self.agents.values()):
             node.on_control(now)
         self._radio.flush_if_due(now)
@@ -275,22 +276,22 @@ class ComposedAgents(Node):
     def _on_batch(self, msg: SensorBatch) -> None:
         """The world's step: its time (with sim time), each agent's part of it, then,
         when a control period is due, every agent's inner loop (``_on_control``)."""
-        stamp = stamp_seconds(msg.header.stamp)
-        if self._sim_time is not None and stamp >= self._sim_time_s:
-            self._sim_time_s = stamp   # a held world repeats its time: never back
+        if self._sim_time is not None:
             self._sim_time.clock_callback(Clock(clock=msg.header.stamp))
+        stamp = stamp_seconds(msg.header.stamp)
         try:
             self._deliver(stamp, sensor_batch_from_msg(msg))
         except PacketError as exc:
             self.get_logger().error(f'dropped a corrupt /swarm/sensor_batch: {exc}',
                                     throttle_duration_sec=10.0)
-        t = self._timer_clock.now().nanoseconds * 1e-9
+        now = self._timer_clock.now()
+        t = now.nanoseconds * 1e-9
         # Due as a timer of the control period on this clock would be (rcl skips missed
         # periods); half a microsecond of slack for sums of float steps.
         if t >= self._next_control - 5e-7:
             self._next_control = (math.floor(t / self._control_period + 5e-7) + 1) \
                 * self._control_period
-            self._on_control()
+            self._on_control(now)
 
     def _deliver(self, stamp: float, inputs: SensorInputs) -> None:
         """Hand each agent of this process its part of a batch stamped ``stamp`` (s)."""

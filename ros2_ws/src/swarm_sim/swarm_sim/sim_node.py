@@ -56,7 +56,12 @@ from std_msgs.msg import Float64MultiArray, Int32MultiArray
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
-from swarm_agent.conversions import frames_or_log, frames_to_msg, stamp_seconds
+from swarm_agent.conversions import (
+    frames_or_log,
+    frames_to_msg,
+    sensor_batch_to_msg,
+    stamp_seconds,
+)
 from swarm_common import qos
 from swarm_common.conversions import goals_from_msg, shape_from_msg
 from swarm_common.ros_parameters import declare
@@ -253,10 +258,7 @@ class SimNode(Node):
         stamp = conv.stamp_of(t)
         self.clock_pub.publish(Clock(clock=stamp))
         if self.batch_pub is not None:
-            if batch is None:
-                batch = SensorBatch()
-                batch.header.stamp = stamp
-            self.batch_pub.publish(batch)
+            self.batch_pub.publish(batch if batch is not None else sensor_batch_to_msg(stamp))
         self._clock_wall = time.monotonic()
 
     def _publish(self, readings: Readings) -> None:
