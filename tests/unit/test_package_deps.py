@@ -25,6 +25,7 @@ ROSDEP = {
     'serial': 'python3-serial', 'cv2': 'python3-opencv', 'pybullet': 'python3-pybullet',
     'dask': 'python3-dask', 'mcap': 'python3-mcap', 'mcap_ros2': 'python3-mcap-ros2',
     'rosbags': 'python3-rosbags', 'foxglove': 'python3-foxglove-sdk',
+    'numba': 'python3-numba',
 }
 
 

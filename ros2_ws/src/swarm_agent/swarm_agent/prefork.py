@@ -134,7 +134,8 @@ class ForkServer:
     def __init__(self, preload: Sequence[str]) -> None:
         self._context = multiprocessing.get_context('forkserver')
         os.environ[LAUNCHER_ENV] = str(os.getpid())
-        self._context.set_forkserver_preload(['swarm_agent.prefork_guard', *preload])
+        self._context.set_forkserver_preload(['swarm_agent.prefork_guard', *preload,
+                                              'swarm_agent.prefork_warm'])
 
     def start(self, name: str, module: str, argv: Sequence[str], log_path: str,
               env: Mapping[str, str], cwd: str) -> ForkedProcess:

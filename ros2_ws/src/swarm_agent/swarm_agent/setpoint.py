@@ -64,10 +64,12 @@ neighbours' broadcast estimates (no fresh scan) carry both robots' localization 
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
 from swarm_agent.lqr import LqrGains
+from swarm_common.jit import helper, kernel
 from swarm_common.parameters import tunable
 
 
@@ -172,11 +174,6 @@ class GiveWay:
             self.count += 1
 
 
-def _saturate(v: np.ndarray, v_max: float) -> np.ndarray:
-    speed = float(np.hypot(*v))
-    return v * (v_max / speed) if speed > v_max else v
-
-
 def tracking_lag_s(fluid_friction: float, gains: LqrGains) -> float:
     """How far in time (s) the robot's velocity trails a steadily changing setpoint.
 
@@ -217,68 +214,129 @@ def avoid_collisions(velocity, offsets, radii, own_radius: float,
     the robot's measured velocity) and ``lag_s`` (s, ``tracking_lag_s``) aim the
     constraint at the gap ``lag_s`` ahead, where the robot's velocity loop will have
     brought it. Returns the closest velocity to the swerved one that satisfies every
-    neighbour's constraint, saturated at ``v_max``."""
-    v = np.asarray(velocity, dtype=float).copy()
-    offsets = np.asarray(offsets, dtype=float).reshape(-1, 2)
+    neighbour's constraint, saturated at ``v_max`` (the rules: ``_avoid``)."""
+    v = np.array(velocity, dtype=float)
+    offsets = np.ascontiguousarray(offsets, dtype=float).reshape(-1, 2)
     if not len(offsets):
         return v
-    d = np.hypot(offsets[:, 0], offsets[:, 1])
-    buffer = params.avoid_buffer + (params.yield_margin if parked else 0.0)
-    gap = d - (own_radius + np.asarray(radii, dtype=float) + buffer)
-    bound = 0.5 * params.avoid_rate * gap
-    if own_velocity is not None and lag_s > 0.0:
-        # Own closing speed u_j . v_i, doubled for the pair: dh/dt = -2 u_j . v_i when
-        # the neighbour closes as fast (an overestimate, so safe, when it does not).
-        closing = (offsets @ np.asarray(own_velocity, dtype=float)) / np.maximum(d, 1e-9)
-        bound = bound - params.avoid_rate * lag_s * closing
-    # Only neighbours whose bound can bind at v_max matter (and none on top of us:
-    # no direction to keep).
-    near = (bound < params.v_max) & (d > 1e-9)
-    if not near.any():
-        return v
-    unit, bound = offsets[near] / d[near, None], bound[near]
-    if params.swerve > 0.0:
-        towards = unit @ v
-        closing = towards > 0.0
-        right = np.column_stack([unit[:, 1], -unit[:, 0]])
-        # Right; left where the right turn would all but cancel the setpoint's own
-        # sideways part of a robot slowing for its goal (module docstring).
-        slowing = np.hypot(*v) < params.v_max * (1.0 - 1e-9)     # not saturated
-        left = slowing & (np.abs(right @ v + params.swerve * towards)
-                          < 0.5 * params.swerve * towards)
-        way = np.where(left, -1.0, 1.0)
-        v = v + params.swerve * ((way * towards)[closing, None] * right[closing]).sum(axis=0)
-    return _saturate(_closest_feasible(v, unit, bound), params.v_max)
+    lead = own_velocity is not None and lag_s > 0.0
+    ux, uy = (float(own_velocity[0]), float(own_velocity[1])) if lead else (0.0, 0.0)
+    v[0], v[1] = _avoid(float(v[0]), float(v[1]), offsets,
+                        np.ascontiguousarray(radii, dtype=float), float(own_radius),
+                        params.avoid_buffer + (params.yield_margin if parked else 0.0),
+                        params.avoid_rate, params.v_max, params.swerve, ux, uy,
+                        float(lag_s) if lead else 0.0)
+    return v
 
 
-def _closest_feasible(v: np.ndarray, normals: np.ndarray, bounds: np.ndarray) -> np.ndarray:
-    """argmin |x - v| subject to normals @ x <= bounds (unit normals), in the plane.
+@kernel(0.3, 0.1, np.array([[1.0, 0.2], [0.9, -0.4]]), np.array([0.4, 0.5]), 0.4, 0.3,
+        1.0, 0.5, 0.5, 0.1, 0.0, 0.6)
+def _avoid(vx: float, vy: float, offsets: np.ndarray, radii: np.ndarray,
+           own_radius: float, buffer: float, avoid_rate: float, v_max: float,
+           swerve: float, ux: float, uy: float, lag_s: float) -> tuple[float, float]:
+    """The collision filter of ``avoid_collisions`` on one robot's velocity (vx, vy).
+
+    Per neighbour j at unit direction u_j and distance d_j, the gap h_j = d_j - (r_i +
+    r_j + buffer) may close at most at avoid_rate * h_j, shared by the pair: u_j . v <=
+    b_j = avoid_rate * h_j / 2, less avoid_rate * lag_s * (u_j . own velocity) when the
+    constraint is aimed ``lag_s`` ahead (lag_s > 0). Only neighbours whose b_j is below
+    v_max can bind. The velocity first swerves: a share ``swerve`` of its speed towards
+    each closing neighbour is turned to the right of u_j (to the left where that would
+    all but cancel the setpoint's own sideways part of a robot slowing for its goal).
+    Then the closest velocity satisfying every constraint (``_closest_feasible``) is
+    saturated at v_max.
+    """
+    k = offsets.shape[0]
+    unit = np.empty((k, 2))
+    bound = np.empty(k)
+    m = 0
+    for j in range(k):
+        ox, oy = offsets[j, 0], offsets[j, 1]
+        d = math.hypot(ox, oy)
+        b = 0.5 * avoid_rate * (d - (own_radius + radii[j] + buffer))
+        if lag_s > 0.0:
+            b = b - avoid_rate * lag_s * ((ox * ux + oy * uy) / max(d, 1e-9))
+        if b < v_max and d > 1e-9:
+            unit[m, 0], unit[m, 1], bound[m] = ox / d, oy / d, b
+            m += 1
+    if m == 0:
+        return vx, vy
+    if swerve > 0.0:
+        slowing = math.hypot(vx, vy) < v_max * (1.0 - 1e-9)     # not saturated
+        sx = sy = 0.0
+        for j in range(m):
+            towards = unit[j, 0] * vx + unit[j, 1] * vy
+            if towards > 0.0:
+                rx, ry = unit[j, 1], -unit[j, 0]      # right of the neighbour's direction
+                way = 1.0
+                if slowing and abs(rx * vx + ry * vy + swerve * towards) < \
+                        0.5 * swerve * towards:
+                    way = -1.0
+                sx += way * towards * rx
+                sy += way * towards * ry
+        vx, vy = vx + swerve * sx, vy + swerve * sy
+    vx, vy = _closest_feasible(vx, vy, unit, bound, m)
+    speed = math.hypot(vx, vy)
+    if speed > v_max:
+        return vx * (v_max / speed), vy * (v_max / speed)
+    return vx, vy
+
+
+@helper
+def _closest_feasible(vx: float, vy: float, normals: np.ndarray, bounds: np.ndarray,
+                      m: int) -> tuple[float, float]:
+    """argmin |x - v| subject to normals[:m] @ x <= bounds[:m] (unit normals), in the plane.
 
     Written out because it is exact and tiny: the optimum of a two-variable QP lies at
     ``v`` itself, at the projection of ``v`` on one constraint line, or at the meeting
-    point of two lines; the candidates are checked at once. (A library QP solver costs
-    more than the whole filter, which runs 12 times a second per robot.) When no point
-    satisfies every constraint (boxed in on all sides), the candidate that violates
-    them least is returned.
+    point of two lines; the candidates are checked in that order and the first closest
+    feasible one is kept. (A library QP solver costs more than the whole filter, which
+    runs 12 times a second per robot.) When no point satisfies every constraint (boxed
+    in on all sides), the first candidate that violates them least is returned.
     """
-    excess = normals @ v - bounds
-    if (excess <= 0.0).all():
-        return v                                  # already safe (the common case)
-    if len(bounds) == 1:
-        return v - excess[0] * normals[0]
-    candidates = [v[None, :], v - np.maximum(excess, 0.0)[:, None] * normals]
-    i, j = np.triu_indices(len(bounds), 1)
-    if len(i):
-        det = normals[i, 0] * normals[j, 1] - normals[i, 1] * normals[j, 0]
-        ok = np.abs(det) > 1e-9
-        i, j, det = i[ok], j[ok], det[ok]
-        x = (bounds[i] * normals[j, 1] - bounds[j] * normals[i, 1]) / det
-        y = (normals[i, 0] * bounds[j] - normals[j, 0] * bounds[i]) / det
-        candidates.append(np.column_stack([x, y]))
-    points = np.vstack(candidates)
-    violation = np.max(points @ normals.T - bounds, axis=1)
-    feasible = violation <= 1e-9
-    if feasible.any():
-        distance = np.where(feasible, np.sum((points - v) ** 2, axis=1), np.inf)
-        return points[int(np.argmin(distance))]
-    return points[int(np.argmin(violation))]
+    safe = True
+    for j in range(m):
+        if normals[j, 0] * vx + normals[j, 1] * vy - bounds[j] > 0.0:
+            safe = False
+    if safe:
+        return vx, vy                             # already safe (the common case)
+    if m == 1:
+        excess = normals[0, 0] * vx + normals[0, 1] * vy - bounds[0]
+        return vx - excess * normals[0, 0], vy - excess * normals[0, 1]
+    best_x, best_y, best_distance = vx, vy, math.inf      # closest feasible so far
+    least_x, least_y, least_violation = vx, vy, math.inf  # least violating so far
+    for c in range(-1, m + m * (m - 1) // 2):
+        if c < 0:                                  # v itself
+            x, y = vx, vy
+        elif c < m:                                # v projected on line c (if outside)
+            excess = max(normals[c, 0] * vx + normals[c, 1] * vy - bounds[c], 0.0)
+            x, y = vx - excess * normals[c, 0], vy - excess * normals[c, 1]
+        else:                                      # where lines i < j meet
+            i, j = _pair(c - m, m)
+            det = normals[i, 0] * normals[j, 1] - normals[i, 1] * normals[j, 0]
+            if abs(det) <= 1e-9:
+                continue
+            x = (bounds[i] * normals[j, 1] - bounds[j] * normals[i, 1]) / det
+            y = (normals[i, 0] * bounds[j] - normals[j, 0] * bounds[i]) / det
+        violation = -math.inf
+        for j in range(m):
+            violation = max(violation, normals[j, 0] * x + normals[j, 1] * y - bounds[j])
+        if violation <= 1e-9:
+            distance = (x - vx) ** 2 + (y - vy) ** 2
+            if distance < best_distance:
+                best_x, best_y, best_distance = x, y, distance
+        elif best_distance == math.inf and violation < least_violation:
+            least_x, least_y, least_violation = x, y, violation
+    if best_distance < math.inf:
+        return best_x, best_y
+    return least_x, least_y
+
+
+@helper
+def _pair(index: int, m: int) -> tuple[int, int]:
+    """The ``index``-th pair (i, j), i < j < m, in row order (as ``np.triu_indices``)."""
+    i = 0
+    while index >= m - 1 - i:
+        index -= m - 1 - i
+        i += 1
+    return i, i + 1 + index

@@ -1,0 +1,146 @@
+"""Compiled kernels: one Python source, compiled by numba where it can be.
+
+A kernel is a plain Python function of numbers and numpy arrays, written as loops (the
+form numba compiles well and the form a reader checks against the thesis). ``kernel``
+returns a function that runs it compiled by ``numba.njit`` (machine code cached on disk
+beside the source, so a process compiles it once per machine) and, where numba cannot be
+used, runs the same Python source:
+
+- ``SWARM_JIT=0`` in the environment: the Python source, no numba import.
+- numba not installed, or a kernel that fails to compile: the Python source, with one
+  warning line naming the cause.
+
+Kernels call each other's helpers (``helper``): plain Python when called from Python,
+compiled into the calling kernel when called from a compiled one.
+
+``use_python(True)`` switches every kernel of the process to its Python source, which is
+how the tests run each kernel both ways and compare (the source stays the reference).
+``warm()`` compiles (or loads from the cache) every kernel with the example arguments it
+was registered with: a fork server calls it before forking, so its children share the
+compiled code and numba's compiler instead of each loading its own (measured: about 4
+MB of private memory per forked child against 57 MB for a child that imports numba
+itself; docs/throughput.md).
+
+Why numba (issue 23): the brains apply small numeric rules to a handful of values many
+times a second per robot. numpy costs microseconds per call on arrays of two to ten
+elements, which is most of the work at those sizes; compiled loops cost tens of
+nanoseconds. numba compiles the Python source itself, so there is no second
+implementation of any rule.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+import logging
+import os
+from typing import Any
+
+LOG = logging.getLogger(__name__)
+ENV = 'SWARM_JIT'
+
+_kernels: list[_Kernel] = []
+_numba: Any = None          # the numba module once imported; False: not available
+_python = False             # use_python(True): every kernel runs its Python source
+
+
+def _load_numba() -> Any:
+    global _numba
+    if _numba is None:
+        if os.environ.get(ENV, '1').strip().lower() in ('0', 'false', 'no', 'off'):
+            _numba = False
+        else:
+            try:
+                import numba
+                _numba = numba
+            except ImportError as exc:
+                LOG.warning('swarm kernels run as Python (slower): numba cannot be imported '
+                            '(%s); install it with `pip install numba`, or set %s=0 to '
+                            'silence this', exc, ENV)
+                _numba = False
+    return _numba
+
+
+class _Kernel:
+    """One kernel: its Python source, its compiled form (or None) and what runs now."""
+
+    def __init__(self, source: Callable, example: tuple) -> None:
+        self.source = source
+        self.example = example
+        numba = _load_numba()
+        self.compiled = (numba.njit(cache=True, nogil=True)(source) if numba else None)
+        self.run: Callable = source if _python or self.compiled is None else self.compiled
+
+    def fall_back(self, exc: Exception) -> None:
+        LOG.warning('kernel %s.%s runs as Python (slower): numba could not compile it: %s',
+                    self.source.__module__, self.source.__qualname__,
+                    str(exc).strip().splitlines()[0] if str(exc).strip() else exc)
+        self.compiled = None
+        self.run = self.source
+
+
+def kernel(*example: Any) -> Callable[[Callable], Callable]:
+    """Decorator: the function as a kernel (module docstring); ``example`` are arguments
+    of the types it is called with, used by ``warm``."""
+    def wrap(source: Callable) -> Callable:
+        state = _Kernel(source, example)
+        _kernels.append(state)
+        errors = _compile_errors()
+
+        def call(*args):
+            try:
+                return state.run(*args)
+            except errors as exc:    # raised before the kernel ran: compiling failed
+                state.fall_back(exc)
+                return source(*args)
+
+        call.__doc__, call.__name__ = source.__doc__, source.__name__
+        call.__qualname__, call.__module__ = source.__qualname__, source.__module__
+        call.__wrapped__ = source       # the Python source (inspect.unwrap, tests)
+        call.kernel = state
+        return call
+    return wrap
+
+
+def helper(source: Callable) -> Callable:
+    """Decorator: a function kernels call. Called from Python it is the Python function
+    itself; called from a compiled kernel it is compiled into it
+    (``numba.extending.register_jitable``)."""
+    numba = _load_numba()
+    if numba:
+        from numba.extending import register_jitable
+        register_jitable(source)
+    return source
+
+
+def _compile_errors() -> tuple[type[BaseException], ...]:
+    """numba's errors of typing and lowering (a failed compile), none without numba."""
+    numba = _load_numba()
+    return (numba.core.errors.NumbaError,) if numba else ()
+
+
+def use_python(python: bool) -> None:
+    """Run every kernel as its Python source (True) or compiled where it can be."""
+    global _python
+    _python = bool(python)
+    for state in _kernels:
+        state.run = state.source if _python or state.compiled is None else state.compiled
+
+
+def compiled() -> bool:
+    """Whether kernels run compiled now (numba available and not switched off)."""
+    return not _python and bool(_load_numba())
+
+
+def warm() -> int:
+    """Compile (or load from the cache) every kernel registered so far on its example
+    arguments; returns how many run compiled."""
+    count = 0
+    for state in _kernels:
+        if state.compiled is None or not state.example:
+            continue
+        try:
+            state.compiled(*state.example)
+            count += 1
+        except _compile_errors() as exc:
+            state.fall_back(exc)
+    return count
