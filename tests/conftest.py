@@ -99,6 +99,18 @@ class ProcessGroup:
         stop_groups(self.procs, grace=12.0)
 
 
+@pytest.fixture(params=['compiled', 'python'])
+def kernels(request):
+    """The test runs twice: with every kernel compiled, then as its Python source
+    (swarm_common.jit). The source is the reference; the compiled code must pass the same
+    assertions."""
+    from swarm_common import jit
+    jit.use_python(request.param == 'python')
+    assert jit.compiled() == (request.param == 'compiled'), 'numba is a requirement'
+    yield request.param
+    jit.use_python(False)
+
+
 @pytest.fixture
 def processes():
     """A ProcessGroup whose processes are killed when the test ends."""

@@ -27,6 +27,8 @@ DT = 0.02                 # inner loop and physics step (50 Hz, headless evaluat
 SCAN = 0.1                # proximity sensor period (10 Hz, swarm_sim.sensors)
 SCAN_NOISE = 0.02         # proximity offset noise per axis, m (swarm_sim.sensors)
 
+pytestmark = pytest.mark.usefixtures('kernels')
+
 
 @pytest.mark.parametrize('type_id, lag', [(1, 0.565), (2, 0.612), (3, 0.712)])
 def test_tracking_lag_is_the_velocity_error_constant_of_the_loop(type_id, lag):

@@ -183,6 +183,7 @@ def test_sliding_robot_stops_in_the_analytic_time():
 
 # -- velocity setpoint generator (3.2.4, Fig. 3.32)
 
+@pytest.mark.usefixtures('kernels')
 def test_setpoint_saturates_at_half_a_metre_per_second():
     params = SetpointParams()
     assert params.v_max == V_MAX
@@ -210,6 +211,7 @@ def _gap_bounds(v, offsets, radii, own, params):
     return (offsets / d[:, None]) @ v - 0.5 * params.avoid_rate * gap
 
 
+@pytest.mark.usefixtures('kernels')
 def test_filter_leaves_free_motion_alone_and_bounds_the_closing_speed():
     params = SetpointParams(swerve=0.0)
     v = np.array([0.5, 0.0])
@@ -225,6 +227,7 @@ def test_filter_leaves_free_motion_alone_and_bounds_the_closing_speed():
     np.testing.assert_allclose(avoid_collisions(across, ahead, [0.3], 0.3, params), across)
 
 
+@pytest.mark.usefixtures('kernels')
 def test_a_parked_robot_yields_to_a_neighbour_inside_the_buffer():
     params = SetpointParams()
     inside = 0.15 + 0.15 + params.avoid_buffer - 0.2      # 0.2 m inside the buffer
@@ -235,6 +238,7 @@ def test_a_parked_robot_yields_to_a_neighbour_inside_the_buffer():
     assert not avoid_collisions(np.zeros(2), edge, [0.15], 0.15, params).any()
 
 
+@pytest.mark.usefixtures('kernels')
 def test_a_parked_robot_with_a_yield_margin_steps_aside_before_contact():
     """yield_margin (hardware: goals 0.34 m apart): a robot squeezing past a parked one
     at the buffer's edge moves it aside; without the margin it would wedge."""
@@ -246,6 +250,7 @@ def test_a_parked_robot_with_a_yield_margin_steps_aside_before_contact():
     np.testing.assert_allclose(parked, [0.0, -0.5 * params.avoid_rate * 0.02], atol=1e-12)
 
 
+@pytest.mark.usefixtures('kernels')
 def test_filter_is_the_closest_safe_velocity():
     """The exact two-variable QP: never worse than SLSQP on random cases."""
     from scipy.optimize import minimize
@@ -302,6 +307,7 @@ def _drive(starts, goals, radii, params, seconds=60.0, dt=0.02, hold=None, delay
     return smallest, p, sum(g.count for g in give_way)
 
 
+@pytest.mark.usefixtures('kernels')
 def test_two_robots_meeting_head_on_pass_each_other_without_touching():
     params = SetpointParams()
     smallest, end, _ = _drive([[0.0, 0.0], [10.0, 0.0]], [[10.0, 0.0], [0.0, 0.0]],
@@ -314,6 +320,7 @@ def test_two_robots_meeting_head_on_pass_each_other_without_touching():
     assert stuck > 0.0 and end[0, 0] < 5.0
 
 
+@pytest.mark.usefixtures('kernels')
 def test_a_robot_goes_round_a_parked_one_on_its_path():
     params = SetpointParams()
     smallest, end, _ = _drive([[0.0, 0.0], [5.0, 0.0]], [[10.0, 0.0], [5.0, 0.0]],
@@ -339,6 +346,7 @@ ARROW_AT_14_S = np.array([[-0.251, -0.209], [0.331, -0.236], [0.528, 0.168],
                           [-0.477, 0.175], [0.128, -0.268]])
 
 
+@pytest.mark.usefixtures('kernels')
 def test_a_robot_slowing_for_its_goal_is_not_held_by_the_swerve():
     """Pressed against a neighbour (gap 0: the filter takes the whole part towards it,
     s = u . v), a robot whose setpoint is below v_max keeps a sideways speed of at least

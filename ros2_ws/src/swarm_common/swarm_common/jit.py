@@ -61,19 +61,39 @@ def _load_numba() -> Any:
 
 
 class _Kernel:
-    """One kernel: its Python source, its compiled form (or None) and what runs now."""
+    """One kernel: its Python source, its compiled form (None: runs as Python) and what
+    runs now (``run``: the first call compiles, then the compiled code runs)."""
 
     def __init__(self, source: Callable, example: tuple) -> None:
         self.source = source
         self.example = example
         numba = _load_numba()
-        self.compiled = (numba.njit(cache=True, nogil=True)(source) if numba else None)
-        self.run: Callable = source if _python or self.compiled is None else self.compiled
+        self.compiled = numba.njit(cache=True, nogil=True)(source) if numba else None
+        self.ready = False          # compiled for the types it is called with
+        self.run: Callable = self._current()
 
-    def fall_back(self, exc: Exception) -> None:
-        LOG.warning('kernel %s.%s runs as Python (slower): numba could not compile it: %s',
-                    self.source.__module__, self.source.__qualname__,
-                    str(exc).strip().splitlines()[0] if str(exc).strip() else exc)
+    def _current(self) -> Callable:
+        if _python or self.compiled is None:
+            return self.source
+        return self.compiled if self.ready else self._first
+
+    def _first(self, *args: Any) -> Any:
+        """Compile for the types of ``args``, then run; a failed compile (numba raises
+        its own errors and, on some unsupported code, plain ones) runs the source."""
+        try:
+            self.compiled.compile(tuple(_numba.typeof(a) for a in args))
+        except Exception as exc:  # noqa: BLE001 - any failure to compile means Python
+            self._fall_back(exc)
+            return self.source(*args)
+        self.ready = True
+        self.run = self._current()
+        return self.compiled(*args)
+
+    def _fall_back(self, exc: Exception) -> None:
+        first = str(exc).strip().splitlines()
+        LOG.warning('kernel %s.%s runs as Python (slower): numba could not compile it: '
+                    '%s: %s', self.source.__module__, self.source.__qualname__,
+                    type(exc).__name__, first[0] if first else '')
         self.compiled = None
         self.run = self.source
 
@@ -84,14 +104,9 @@ def kernel(*example: Any) -> Callable[[Callable], Callable]:
     def wrap(source: Callable) -> Callable:
         state = _Kernel(source, example)
         _kernels.append(state)
-        errors = _compile_errors()
 
         def call(*args):
-            try:
-                return state.run(*args)
-            except errors as exc:    # raised before the kernel ran: compiling failed
-                state.fall_back(exc)
-                return source(*args)
+            return state.run(*args)
 
         call.__doc__, call.__name__ = source.__doc__, source.__name__
         call.__qualname__, call.__module__ = source.__qualname__, source.__module__
@@ -112,18 +127,12 @@ def helper(source: Callable) -> Callable:
     return source
 
 
-def _compile_errors() -> tuple[type[BaseException], ...]:
-    """numba's errors of typing and lowering (a failed compile), none without numba."""
-    numba = _load_numba()
-    return (numba.core.errors.NumbaError,) if numba else ()
-
-
 def use_python(python: bool) -> None:
     """Run every kernel as its Python source (True) or compiled where it can be."""
     global _python
     _python = bool(python)
     for state in _kernels:
-        state.run = state.source if _python or state.compiled is None else state.compiled
+        state.run = state._current()
 
 
 def compiled() -> bool:
@@ -136,11 +145,7 @@ def warm() -> int:
     arguments; returns how many run compiled."""
     count = 0
     for state in _kernels:
-        if state.compiled is None or not state.example:
-            continue
-        try:
-            state.compiled(*state.example)
-            count += 1
-        except _compile_errors() as exc:
-            state.fall_back(exc)
+        if state.compiled is not None and state.example and not state.ready:
+            state._first(*state.example)
+        count += state.ready
     return count
