@@ -30,6 +30,8 @@ A, B, C, D, E, F, G = range(1, 8)
 ITERATION = DsdvConfig(heartbeat_period_s=1.0, full_dump_period_s=1.0,
                        neighbour_timeout_s=2.0, incremental_min_interval_s=1.0)
 PROPERTY = settings(max_examples=25, deadline=None)
+# The route table's rules run as kernels (swarm_agent.route_table): compiled and as source.
+pytestmark = pytest.mark.usefixtures('kernels')
 
 
 def _bfs(ids: list[int], adj: dict[int, set[int]]) -> np.ndarray:

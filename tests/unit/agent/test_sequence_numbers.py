@@ -1,10 +1,14 @@
 """DSDV destination sequence numbers are 32-bit serial numbers (RFC 1982 order)."""
 
+import pytest
+
 from swarm_agent import wire
 from swarm_agent.dsdv import DsdvConfig, DsdvRouter, seq_newer, SEQUENCE_MASK, SEQUENCE_STEP
 from swarm_agent.packet import BROADCAST, Kind, Packet
 from swarm_agent.wire import Advert
 
+# The selection rules run as a kernel (swarm_agent.route_table): compiled and as source.
+pytestmark = pytest.mark.usefixtures('kernels')
 
 def test_order_across_the_wrap():
     assert seq_newer(2, 0) and not seq_newer(0, 2)

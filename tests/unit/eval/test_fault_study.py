@@ -74,8 +74,8 @@ def test_loop_and_stale_route_probes():
     swarm = _swarm()
     a, b, c = (brain.router for brain in swarm.brains)
     # a -> b -> a for destination c: a next-hop loop
-    a.table[c.id] = RouteEntry(c.id, b.id, 2, 10)
-    b.table[c.id] = RouteEntry(c.id, a.id, 2, 10)
+    a.set_route(RouteEntry(c.id, b.id, 2, 10))
+    b.set_route(RouteEntry(c.id, a.id, 2, 10))
     assert fault_probes.count_routing_loops(swarm) == 2
     swarm.alive[2] = False
     swarm.brains[2] = None

@@ -38,9 +38,14 @@ from dataclasses import dataclass, field
 import logging
 import math
 
+import numpy as np
+
 from swarm_agent import flood_relay, wire
 from swarm_agent.packet import BROADCAST, Kind, Packet
-from swarm_agent.wire import Advert, INFINITE_HOPS, WireError
+from swarm_agent.route_table import RouteEntry, RouteTable, SEQUENCE_MASK, SEQUENCE_STEP
+from swarm_agent.route_table import seq_newer as seq_newer  # this module's API as well
+from swarm_agent.wire import Advert, WireError
+from swarm_agent.wire import INFINITE_HOPS as INFINITE_HOPS  # this module's API as well
 from swarm_common.parameters import tunable
 
 LOG = logging.getLogger(__name__)
@@ -48,9 +53,6 @@ _KINDS = {int(k): k for k in Kind}
 # Compared by identity in on_packet (an Enum attribute lookup per frame adds up).
 _HEARTBEAT, _FULL, _INCREMENTAL = Kind.HEARTBEAT, Kind.DSDV_FULL, Kind.DSDV_INCREMENTAL
 _DATA, _FLOOD = Kind.DATA, Kind.FLOOD
-SEQUENCE_STEP = 2  # own sequence numbers grow by this at every full dump (they stay even)
-SEQUENCE_MASK = 0xFFFFFFFF  # sequence numbers are 32-bit on the wire and wrap around
-_HALF = 1 << 31
 BOOT_RATE = 128  # boot_sequence grows by 2 * BOOT_RATE a second of boot time
 
 
@@ -66,16 +68,6 @@ def boot_sequence(boot_time_s: float) -> int:
     (c) less than 2**30 / BOOT_RATE s (97 days) passed between the two boots.
     """
     return (2 * int(round(boot_time_s * BOOT_RATE))) & SEQUENCE_MASK
-
-
-def seq_newer(a: int, b: int) -> bool:
-    """Serial-number order (RFC 1982) of 32-bit sequence numbers: is ``a`` newer than ``b``?
-
-    Plain ``>`` breaks at the wrap: one advert with 0xFFFFFFFF (a fuzzing input, in
-    tests/data/fuzz_corpus) would make a destination unreachable for good, since its
-    real, wrapped numbers would look older.
-    """
-    return 0 < ((a - b) & SEQUENCE_MASK) < _HALF
 
 
 def _seq_add(a: int, n: int) -> int:
@@ -106,17 +98,6 @@ class DsdvConfig:
                                  high=1.0)
 
 
-@dataclass
-class RouteEntry:
-    """One row of the route table (swarm_msgs/RouteEntry)."""
-
-    destination: int
-    next_hop: int
-    hop_count: int
-    sequence_number: int
-    changed: bool = True
-
-
 @dataclass(frozen=True)
 class Delivered:
     """An application payload for this agent: heartbeat info, routed data or a flood."""
@@ -145,7 +126,7 @@ class DsdvRouter:
         self.id = int(node_id)
         self.config = config or DsdvConfig()
         self.sequence = boot_sequence(boot_time_s)  # own sequence number (even)
-        self.table: dict[int, RouteEntry] = {}
+        self.route_table = RouteTable()
         self.heard: dict[int, float] = {}       # neighbour -> last time heard
         self.two_hop: dict[int, set[int]] = {}  # neighbour -> its advertised neighbours
         # neighbour -> [last heartbeat time, heartbeats heard, heartbeats sent] (decayed)
@@ -192,9 +173,18 @@ class DsdvRouter:
         self._info = info if callable(info) else bytes(info)
 
     # ------------------------------------------------------------------ queries
+    @property
+    def table(self) -> dict[int, RouteEntry]:
+        """The route table by destination, as copies (``set_route`` writes one)."""
+        return {e.destination: e for e in self.route_table.entries()}
+
+    def set_route(self, entry: RouteEntry) -> None:
+        """Write one route (a fault study's forged table, a test's set-up)."""
+        self.route_table.set(entry)
+
     def routes(self) -> list[RouteEntry]:
-        """The route table, sorted by destination (own entry excluded)."""
-        return [self.table[d] for d in sorted(self.table)]
+        """The route table, sorted by destination (own entry excluded; copies)."""
+        return self.route_table.entries()
 
     def neighbours(self) -> set[int]:
         """Direct neighbours currently heard."""
@@ -202,11 +192,10 @@ class DsdvRouter:
 
     def reachable(self) -> set[int]:
         """Destinations with a finite route."""
-        return {d for d, r in self.table.items() if r.hop_count < INFINITE_HOPS}
+        return self.route_table.reachable()
 
     def next_hop(self, destination: int) -> int | None:
-        route = self.table.get(destination)
-        return route.next_hop if route and route.hop_count < INFINITE_HOPS else None
+        return self.route_table.next_hop(destination)
 
     # ------------------------------------------------------------------ timers
     def idle(self, t: float) -> bool:
@@ -237,19 +226,17 @@ class DsdvRouter:
                 Advert(r.destination, r.hop_count, r.sequence_number) for r in self.routes()]
             for frame in wire.encode_adverts(self.sequence, adverts):
                 out.append(self._packet(BROADCAST, Kind.DSDV_FULL, frame, ttl=1))
-            for r in self.table.values():
-                r.changed = False
+            self.route_table.clear_changed()
             self._dirty = False
             self._last_incremental = t
         elif (self._dirty
               and t - self._last_incremental >= self.config.incremental_min_interval_s
-              and any(r.changed for r in self.table.values())):
-            changed = [r for r in self.routes() if r.changed]
-            adverts = [Advert(r.destination, r.hop_count, r.sequence_number) for r in changed]
+              and self.route_table.any_changed()):
+            adverts = [Advert(r.destination, r.hop_count, r.sequence_number)
+                       for r in self.route_table.changed_entries()]
             for frame in wire.encode_adverts(self.sequence, adverts):
                 out.append(self._packet(BROADCAST, Kind.DSDV_INCREMENTAL, frame, ttl=1))
-            for r in changed:
-                r.changed = False
+            self.route_table.clear_changed()
             self._dirty = False
             self._last_incremental = t
         for key, (started, _) in list(self._partial.items()):
@@ -265,12 +252,8 @@ class DsdvRouter:
         self.two_hop.pop(neighbour, None)
         self._beats.pop(neighbour, None)
         self._view_changed()
-        for route in self.table.values():
-            if route.next_hop == neighbour and route.hop_count < INFINITE_HOPS:
-                route.hop_count = INFINITE_HOPS
-                route.sequence_number = _seq_add(route.sequence_number,
-                                                 1 if route.sequence_number % 2 == 0 else 2)
-                route.changed = self._dirty = True
+        if self.route_table.break_link(neighbour):
+            self._dirty = True
         self._count('link_breaks')
 
     # ------------------------------------------------------------------ receive
@@ -304,36 +287,16 @@ class DsdvRouter:
                                         self.config.flood_miss_target)
 
     def _heard(self, t: float, neighbour: int, seq: int | None, dump_seq: int = 0) -> None:
-        """Link addition (Fig. 3.8): a neighbour heard directly is a one-hop route.
-
-        A heartbeat carries the neighbour's own (even) sequence number. If we had
-        marked the route broken (odd number), the direct link is proof enough: the
-        route is restored with the next even number, which outbids the break. A dump
-        heard first makes the route a step below the sender's own number (its header),
-        older than its next heartbeat (a fixed 0 could be newer than a boot number).
-        """
+        """Link addition (Fig. 3.8): the neighbour is heard now and is a one-hop route
+        (the rules: ``route_table._heard``; ``seq`` None: heard in a dump)."""
         if neighbour not in self.heard:
             self._view_changed()
         self.heard[neighbour] = t
         if self._next_expiry == math.inf:
             self._next_expiry = t + self.config.neighbour_timeout_s
             self._wake = min(self._wake, self._next_expiry)
-        route = self.table.get(neighbour)
-        if seq is None:
-            if route is None:
-                self.table[neighbour] = RouteEntry(
-                    neighbour, neighbour, 1, _seq_add(dump_seq, -SEQUENCE_STEP))
-                self._dirty = True
-            return
-        if (route is not None and route.hop_count == 1 and route.next_hop == neighbour
-                and not seq_newer(seq, route.sequence_number)):
-            return
-        best = seq
-        if route is not None:
-            restored = _seq_add(route.sequence_number, route.sequence_number % 2)
-            best = restored if seq_newer(restored, seq) else seq
-        self.table[neighbour] = RouteEntry(neighbour, neighbour, 1, best)
-        self._dirty = True
+        if self.route_table.heard(neighbour, -1 if seq is None else seq, dump_seq):
+            self._dirty = True
 
     def _learn_neighbourhood(self, neighbour: int, ones: frozenset[int],
                              others: frozenset[int]) -> None:
@@ -362,62 +325,16 @@ class DsdvRouter:
         return flood_relay.relays_anyway(self._copies, len(self.heard), flood_id, origin,
                                          self.id)
 
-    def _merge(self, neighbour: int, adverts: tuple[Advert, ...]) -> None:
-        """Apply the two selection rules (3.1.2.1) to a neighbour's adverts.
-
-        Runs for every advert of every dump heard by every receiver (a tenth of the
-        headless evaluator), so the common case, a number we already hold over no
-        shorter path, is tested first and serial-number order is inlined.
-        """
-        table = self.table
-        stale = self.config.stale_generations * SEQUENCE_STEP
-        own = self.id
-        for dest, hops, sequence in adverts:
-            if dest == own:
-                if seq_newer(sequence, self.sequence):
-                    # Someone holds a newer (odd, broken) number for us: outbid it.
-                    self.sequence = _seq_add(sequence, 1 if sequence % 2 else 2)
-                continue
-            hops = INFINITE_HOPS if hops >= INFINITE_HOPS - 1 else hops + 1
-            current = table.get(dest)
-            if current is None:
-                if hops < INFINITE_HOPS:
-                    table[dest] = RouteEntry(dest, neighbour, hops, sequence)
-                    self._dirty = True
-                continue
-            ahead = (sequence - current.sequence_number) & SEQUENCE_MASK
-            if ahead == 0:
-                if hops < current.hop_count:   # same number, shorter path
-                    self._take(current, neighbour, hops, sequence)
-                continue
-            if ahead >= _HALF:
-                continue                        # older than what we hold
-            if hops >= INFINITE_HOPS:
-                # Fig. 3.9: a newer broken-link advert invalidates the stale route.
-                current.hop_count = INFINITE_HOPS
-                current.sequence_number = sequence
-                current.changed = self._dirty = True
-                continue
-            if not (current.next_hop == neighbour or hops <= current.hop_count
-                    or current.hop_count >= INFINITE_HOPS or ahead >= stale):
-                # Damping: a newer number first over a longer path would make the route
-                # flap; the shorter path brings it soon. It wins ``stale_generations`` on.
-                self._count('damped')
-                continue
-            self._take(current, neighbour, hops, sequence)
-
-    def _take(self, route: RouteEntry, neighbour: int, hops: int, sequence: int) -> None:
-        """Adopt a neighbour's advert.
-
-        Only a new metric is news worth a triggered update; a newer number alone waits
-        for the next full dump (DSDV's settling rule, Perkins and Bhagwat 1994; counting
-        next-hop changes sent 2.8 incremental frames per agent a second).
-        """
-        if route.hop_count != hops:
-            route.changed = self._dirty = True
-        route.next_hop = neighbour
-        route.hop_count = hops
-        route.sequence_number = sequence
+    def _merge(self, neighbour: int, adverts: np.ndarray) -> None:
+        """Apply the two selection rules (3.1.2.1) to a neighbour's adverts (k, 3:
+        destination, hops, sequence number; the rules: ``route_table._merge``)."""
+        self.sequence, dirty, damped = self.route_table.merge(
+            self.id, self.sequence, self.config.stale_generations * SEQUENCE_STEP,
+            neighbour, adverts)
+        if dirty:
+            self._dirty = True
+        if damped:
+            self._count('damped', damped)
 
     # ------------------------------------------------------------------ data plane
     def send(self, t: float, destination: int, payload: bytes) -> list[Packet]:
@@ -541,10 +458,11 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
         elif kind is _FULL or kind is _INCREMENTAL:
             seq, adverts = wire.decode_adverts(packet.payload)
             ones, others = _neighbour_set(source, adverts)
+            rows = _advert_rows(adverts)
             for _, r in taking:
                 r._heard(t, source, None, seq)
                 r._learn_neighbourhood(source, ones, others)
-                r._merge(source, adverts)
+                r._merge(source, rows)
         elif kind is _DATA:
             for i, r in taking:
                 outs[i] = _per_router(r, t, packet, kind, r._on_data)
@@ -570,6 +488,11 @@ def _per_router(router: DsdvRouter, t: float, packet: Packet, kind: Kind,
 def _count_all(routers: Sequence[DsdvRouter], key: str) -> None:
     for router in routers:
         router._count(key)
+
+
+def _advert_rows(adverts: tuple[Advert, ...]) -> np.ndarray:
+    """Adverts as the (k, 3) array the route table's kernel reads, once per frame."""
+    return np.array(adverts, dtype=np.int64).reshape(-1, 3)
 
 
 def _neighbour_set(neighbour: int, adverts: tuple[Advert, ...]) -> tuple[
