@@ -18,6 +18,7 @@ from swarm_agent.brain_config import BrainConfig, BrainConfigError
 from swarm_agent.frame_auth import FrameAuth, Keyring, load_keyring
 from swarm_agent.localization import LocalizationConfig
 from swarm_agent.lqr import design_lqr
+from swarm_agent.route_table import RouteStore
 from swarm_common.parameters import configured
 from swarm_common.paths import package_file
 from swarm_common.robot_types import (
@@ -51,7 +52,8 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
                initial_position_std: float | None = None,
                settings: Mapping[str, Any] | None = None,
                keyring: Keyring | None = None, auth: bool = True,
-               boot_time_s: float | None = None) -> AgentBrain:
+               boot_time_s: float | None = None,
+               route_store: RouteStore | None = None) -> AgentBrain:
     """An AgentBrain for one robot, with the LQR gains of its type (eqs. 3.108-3.111).
 
     ``initial_position`` is the robot's deployment prior, the position it was configured
@@ -65,7 +67,8 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
     ``boot_time_s`` (s) seeds the first DSDV sequence number so that a restarted agent's
     numbers are newer than its previous run's (``dsdv.boot_sequence``): None takes the
     wall clock, which survives a process restart; the headless evaluator passes its
-    simulated time, so its runs stay reproducible.
+    simulated time, so its runs stay reproducible. Brains of one process share
+    ``route_store`` (``swarm_agent.route_table``: a frame's receivers routed in one call).
     """
     types = load_robot_types(robot_types_file)
     robot = robot_type(types, agent_type)
@@ -92,7 +95,8 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
     frame_auth = FrameAuth(keyring or swarm_keyring()) if auth else None
     return AgentBrain(config, robot, gains, initial_position,
                       np.random.default_rng(seed), u_max=u_limit, auth=frame_auth,
-                      boot_time_s=time.time() if boot_time_s is None else boot_time_s)
+                      boot_time_s=time.time() if boot_time_s is None else boot_time_s,
+                      route_store=route_store)
 
 
 def type_counts_from(spec: str | dict[int, int]) -> dict[int, int]:

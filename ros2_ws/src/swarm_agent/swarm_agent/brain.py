@@ -68,6 +68,7 @@ from swarm_agent.mesh_messages import (
 )
 from swarm_agent.packet import Kind, Packet
 from swarm_agent.reception import receive
+from swarm_agent.route_table import RouteStore
 from swarm_agent.setpoint import avoid_collisions, GiveWay, tracking_lag_s, velocity_setpoint
 from swarm_agent.stall import StallDetector
 from swarm_common.goals import Goal
@@ -141,15 +142,17 @@ class AgentBrain:
     def __init__(self, config: BrainConfig, robot: RobotType, gains: LqrGains,
                  initial_position: Sequence[float], rng: np.random.Generator,
                  u_max: float | None = None, auth: FrameAuth | None = None,
-                 boot_time_s: float = 0.0) -> None:
+                 boot_time_s: float = 0.0, route_store: RouteStore | None = None) -> None:
         """``auth`` seals and opens the radio frames; None: unauthenticated (only for
         comparisons and tests: ``agent_factory.make_brain`` gives every brain one).
-        ``boot_time_s`` sets the first DSDV sequence number (``dsdv.boot_sequence``)."""
+        ``boot_time_s`` sets the first DSDV sequence number (``dsdv.boot_sequence``).
+        ``route_store`` holds the route tables of the process's brains (one store: a
+        frame's receivers are routed in one call); None: one of its own."""
         self.config = config
         self.auth = auth
         self.robot = robot
         self.rng = rng
-        self.router = DsdvRouter(config.agent_id, config.dsdv, boot_time_s)
+        self.router = DsdvRouter(config.agent_id, config.dsdv, boot_time_s, route_store)
         self.router.set_heartbeat_info(lambda: self._info().encode())
         self.localizer = Localizer(config.localization, np.asarray(initial_position, float))
         self.loop = VelocityLoop(gains, u_max=u_max)

@@ -80,6 +80,7 @@ from swarm_agent.brain_config import BrainConfigError
 from swarm_agent.conversions import sensor_batch_from_msg, SensorInputs, stamp_seconds
 from swarm_agent.packet import PacketError
 from swarm_agent.reception import receive
+from swarm_agent.route_table import RouteStore
 from swarm_common import qos
 from swarm_common.ros_support import declare_list_parameter, run_node
 from swarm_msgs.msg import ForceBatch, FormationShape, GoalArray, RadioPacketArray, SensorBatch
@@ -165,6 +166,7 @@ class ComposedAgents(Node):
                            if p['sensor_batch'] else None)
         # Every agent's TF of one state period in one message (reliable, as tf2 listens).
         self._transforms: list[TransformStamped] = []
+        self._route_store = RouteStore()   # every agent's route table (swarm_agent.route_table)
         self._tf = self.create_publisher(TFMessage, '/tf', QoSProfile(**qos.STATE))
         for robot in robots:
             agent_id = int(robot['id'])
@@ -200,6 +202,7 @@ class ComposedAgents(Node):
                              shared_inputs=bool(p['sensor_batch']),
                              command_sink=(self._command if p['sensor_batch'] else None),
                              tf_sink=self._transforms.append,
+                             route_store=self._route_store,
                              parameter_overrides=overrides, context=self.context,
                              start_parameter_services=False)
             if self._sim_time is not None:

@@ -40,9 +40,15 @@ import math
 
 import numpy as np
 
-from swarm_agent import flood_relay, wire
+from swarm_agent import flood_relay, route_table, wire
 from swarm_agent.packet import BROADCAST, Kind, Packet
-from swarm_agent.route_table import RouteEntry, RouteTable, SEQUENCE_MASK, SEQUENCE_STEP
+from swarm_agent.route_table import (
+    RouteEntry,
+    RouteStore,
+    RouteTable,
+    SEQUENCE_MASK,
+    SEQUENCE_STEP,
+)
 from swarm_agent.route_table import seq_newer as seq_newer  # this module's API as well
 from swarm_agent.wire import Advert, WireError
 from swarm_agent.wire import INFINITE_HOPS as INFINITE_HOPS  # this module's API as well
@@ -122,11 +128,13 @@ class DsdvRouter:
     """DSDV routing for one agent; see the module docstring."""
 
     def __init__(self, node_id: int, config: DsdvConfig | None = None,
-                 boot_time_s: float = 0.0) -> None:
+                 boot_time_s: float = 0.0, store: RouteStore | None = None) -> None:
+        """``store`` holds the route tables of the process's routers (``route_table``:
+        a frame's receivers are updated in one call); None: a store of its own."""
         self.id = int(node_id)
         self.config = config or DsdvConfig()
         self.sequence = boot_sequence(boot_time_s)  # own sequence number (even)
-        self.route_table = RouteTable()
+        self.route_table = RouteTable(store)
         self.heard: dict[int, float] = {}       # neighbour -> last time heard
         self.two_hop: dict[int, set[int]] = {}  # neighbour -> its advertised neighbours
         # neighbour -> [last heartbeat time, heartbeats heard, heartbeats sent] (decayed)
@@ -286,17 +294,15 @@ class DsdvRouter:
         return flood_relay.extra_copies(self.config.flood_extra_copies, self.link_loss(),
                                         self.config.flood_miss_target)
 
-    def _heard(self, t: float, neighbour: int, seq: int | None, dump_seq: int = 0) -> None:
-        """Link addition (Fig. 3.8): the neighbour is heard now and is a one-hop route
-        (the rules: ``route_table._heard``; ``seq`` None: heard in a dump)."""
+    def _heard(self, t: float, neighbour: int) -> None:
+        """A neighbour heard directly is a neighbour now; its one-hop route is the route
+        table's (``route_table.heard``, applied by ``hear`` to every receiver at once)."""
         if neighbour not in self.heard:
             self._view_changed()
         self.heard[neighbour] = t
         if self._next_expiry == math.inf:
             self._next_expiry = t + self.config.neighbour_timeout_s
             self._wake = min(self._wake, self._next_expiry)
-        if self.route_table.heard(neighbour, -1 if seq is None else seq, dump_seq):
-            self._dirty = True
 
     def _learn_neighbourhood(self, neighbour: int, ones: frozenset[int],
                              others: frozenset[int]) -> None:
@@ -324,17 +330,6 @@ class DsdvRouter:
             return True
         return flood_relay.relays_anyway(self._copies, len(self.heard), flood_id, origin,
                                          self.id)
-
-    def _merge(self, neighbour: int, adverts: np.ndarray) -> None:
-        """Apply the two selection rules (3.1.2.1) to a neighbour's adverts (k, 3:
-        destination, hops, sequence number; the rules: ``route_table._merge``)."""
-        self.sequence, dirty, damped = self.route_table.merge(
-            self.id, self.sequence, self.config.stale_generations * SEQUENCE_STEP,
-            neighbour, adverts)
-        if dirty:
-            self._dirty = True
-        if damped:
-            self._count('damped', damped)
 
     # ------------------------------------------------------------------ data plane
     def send(self, t: float, destination: int, payload: bytes) -> list[Packet]:
@@ -453,16 +448,18 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
             heartbeat = RouterOutput(delivered=[Delivered(source, Kind.HEARTBEAT, info)])
             for i, r in taking:
                 r._count_beat(t, source)
-                r._heard(t, source, seq)
+                r._heard(t, source)
                 outs[i] = heartbeat
+            _link_added([r for _, r in taking], source, seq)
         elif kind is _FULL or kind is _INCREMENTAL:
             seq, adverts = wire.decode_adverts(packet.payload)
             ones, others = _neighbour_set(source, adverts)
-            rows = _advert_rows(adverts)
-            for _, r in taking:
-                r._heard(t, source, None, seq)
+            receivers = [r for _, r in taking]
+            for r in receivers:
+                r._heard(t, source)
                 r._learn_neighbourhood(source, ones, others)
-                r._merge(source, rows)
+            _link_added(receivers, source, None, seq)
+            _merged(receivers, source, _advert_rows(adverts))
         elif kind is _DATA:
             for i, r in taking:
                 outs[i] = _per_router(r, t, packet, kind, r._on_data)
@@ -488,6 +485,43 @@ def _per_router(router: DsdvRouter, t: float, packet: Packet, kind: Kind,
 def _count_all(routers: Sequence[DsdvRouter], key: str) -> None:
     for router in routers:
         router._count(key)
+
+
+def _by_store(routers: list[DsdvRouter]) -> list[list[DsdvRouter]]:
+    """``routers`` grouped by the store of their route tables (one group in a process
+    whose routers share a store, as the evaluator's and a composed container's do)."""
+    store = routers[0].route_table.store
+    if all(r.route_table.store is store for r in routers):
+        return [routers]
+    groups: dict[int, list[DsdvRouter]] = {}
+    for r in routers:
+        groups.setdefault(id(r.route_table.store), []).append(r)
+    return list(groups.values())
+
+
+def _link_added(routers: list[DsdvRouter], neighbour: int, seq: int | None,
+                dump_seq: int = 0) -> None:
+    """Link addition (Fig. 3.8) at every receiver: ``route_table.heard``."""
+    for group in _by_store(routers):
+        changed = route_table.heard([r.route_table for r in group], neighbour, seq, dump_seq)
+        for r, c in zip(group, changed):
+            if c:
+                r._dirty = True
+
+
+def _merged(routers: list[DsdvRouter], neighbour: int, adverts: np.ndarray) -> None:
+    """The selection rules (3.1.2.1) at every receiver: ``route_table.merge``."""
+    for group in _by_store(routers):
+        sequences, changed, damped = route_table.merge(
+            [r.route_table for r in group], [r.id for r in group],
+            [r.sequence for r in group],
+            [r.config.stale_generations * SEQUENCE_STEP for r in group], neighbour, adverts)
+        for r, sequence, c, n in zip(group, sequences, changed, damped):
+            r.sequence = sequence
+            if c:
+                r._dirty = True
+            if n:
+                r._count('damped', n)
 
 
 def _advert_rows(adverts: tuple[Advert, ...]) -> np.ndarray:

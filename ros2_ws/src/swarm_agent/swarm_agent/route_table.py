@@ -1,19 +1,26 @@
-"""The route table of one DSDV router as arrays, and the selection rules as kernels.
+"""DSDV route tables as arrays, one row per router of a process, and their rules as kernels.
 
-A row per destination ever heard (rows are never removed: a lost route is kept with an
-infinite metric and an odd sequence number, thesis 3.1.2.3):
+A ``RouteStore`` holds the route tables of every router of a process (the headless
+evaluator's swarm, a composed container's agents; a node with one router has a store of
+its own): row ``p`` is router p's table, column ``c`` the destination ``ids[c]``
+(``column[destination]`` finds it for every 16-bit address), and each cell holds
 
-    rows[r] = (destination, sequence number, hops, next hop, changed)
+    cells[p, c] = (sequence number, hops, next hop, changed)    hops -1: no route
 
-``slot[destination]`` is the row of a destination (-1: none), for every 16-bit address,
-so a kernel finds a row with one read. The rules that run for every advert of every dump
-every receiver hears (a tenth of a 50-agent trial as dict lookups and attribute writes)
-run as compiled loops over these arrays (``swarm_common.jit``); the rules that run a few
-times a second per router (dumps, link breaks) are numpy on the rows.
+Rows are never emptied: a lost route is kept with an infinite metric and an odd sequence
+number (thesis 3.1.2.3). A ``RouteTable`` is one router's view (store, row).
+
+The rules that run for every frame every receiver hears (link addition for each
+heartbeat and dump, the selection rules for each dump's adverts: a quarter of a 50-agent
+trial as dict lookups and attribute writes per receiver) are kernels
+(``swarm_common.jit``) applied to all the receivers of one transmission in one call
+(``heard``, ``merge``: ``rows`` lists the receivers' rows); the rules that run a few
+times a second per router (dumps, link breaks) are numpy on the router's row.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,7 +32,8 @@ SEQUENCE_STEP = 2           # own sequence numbers grow by this at every full du
 SEQUENCE_MASK = 0xFFFFFFFF  # sequence numbers are 32-bit on the wire and wrap around
 HALF = 1 << 31
 ADDRESSES = 1 << 16
-DEST, SEQ, HOPS, NEXT, CHANGED = range(5)   # columns of ``rows``
+SEQ, HOPS, NEXT, CHANGED = range(4)   # fields of a cell
+NONE = -1                              # hops of a cell without a route
 
 
 @dataclass
@@ -39,102 +47,6 @@ class RouteEntry:
     changed: bool = True
 
 
-class RouteTable:
-    """Destination -> (next hop, hops, sequence number, changed); see the module."""
-
-    def __init__(self, capacity: int = 16) -> None:
-        self.slot = np.full(ADDRESSES, -1, dtype=np.int32)
-        self.rows = np.zeros((capacity, 5), dtype=np.int64)
-        self.count = 0
-
-    def __len__(self) -> int:
-        return self.count
-
-    def reserve(self, extra: int) -> None:
-        """Room for ``extra`` more rows (a kernel adds rows but does not grow arrays)."""
-        need = self.count + extra
-        if need > len(self.rows):
-            grown = np.zeros((max(need, 2 * len(self.rows)), 5), dtype=np.int64)
-            grown[:self.count] = self.rows[:self.count]
-            self.rows = grown
-
-    def get(self, destination: int) -> RouteEntry | None:
-        """The row of ``destination`` as a RouteEntry (a copy), or None."""
-        r = int(self.slot[destination]) if 0 <= destination < ADDRESSES else -1
-        if r < 0:
-            return None
-        d, seq, hops, nxt, changed = self.rows[r].tolist()
-        return RouteEntry(d, nxt, hops, seq, bool(changed))
-
-    def set(self, entry: RouteEntry) -> None:
-        """Write one row (a new destination gets a new row)."""
-        r = int(self.slot[entry.destination])
-        if r < 0:
-            self.reserve(1)
-            r = self.slot[entry.destination] = self.count
-            self.count += 1
-        self.rows[r] = (entry.destination, entry.sequence_number & SEQUENCE_MASK,
-                        entry.hop_count, entry.next_hop, int(entry.changed))
-
-    def entries(self) -> list[RouteEntry]:
-        """Every row as a RouteEntry, sorted by destination (copies)."""
-        rows = self.rows[:self.count]
-        return [RouteEntry(d, nxt, hops, seq, bool(changed))
-                for d, seq, hops, nxt, changed in rows[np.argsort(rows[:, DEST])].tolist()]
-
-    def next_hop(self, destination: int) -> int | None:
-        r = self.slot[destination] if 0 <= destination < ADDRESSES else -1
-        if r < 0:
-            return None
-        row = self.rows[r]
-        return int(row[NEXT]) if row[HOPS] < INFINITE_HOPS else None
-
-    def reachable(self) -> set[int]:
-        rows = self.rows[:self.count]
-        return set(rows[rows[:, HOPS] < INFINITE_HOPS, DEST].tolist())
-
-    def any_changed(self) -> bool:
-        return bool(self.rows[:self.count, CHANGED].any())
-
-    def clear_changed(self) -> None:
-        self.rows[:self.count, CHANGED] = 0
-
-    def changed_entries(self) -> list[RouteEntry]:
-        return [e for e in self.entries() if e.changed]
-
-    def break_link(self, neighbour: int) -> bool:
-        """Fig. 3.9: every finite route through ``neighbour`` gets hops = inf and the next
-        odd sequence number (one above an even number, two above an odd one). Returns
-        whether any route changed."""
-        rows = self.rows[:self.count]
-        hit = (rows[:, NEXT] == neighbour) & (rows[:, HOPS] < INFINITE_HOPS)
-        if not hit.any():
-            return False
-        seq = rows[hit, SEQ]
-        rows[hit, SEQ] = (seq + 1 + (seq & 1)) & SEQUENCE_MASK
-        rows[hit, HOPS] = INFINITE_HOPS
-        rows[hit, CHANGED] = 1
-        return True
-
-    def heard(self, neighbour: int, seq: int, dump_seq: int) -> bool:
-        """Link addition (``DsdvRouter._heard``; ``seq`` < 0: heard in a dump whose header
-        number is ``dump_seq``). Returns whether the table changed."""
-        self.reserve(1)
-        changed, count = _heard(self.slot, self.rows, self.count, neighbour, seq, dump_seq)
-        self.count = int(count)
-        return bool(changed)
-
-    def merge(self, own: int, own_sequence: int, stale: int, neighbour: int,
-              adverts: np.ndarray) -> tuple[int, bool, int]:
-        """The selection rules on a neighbour's adverts (``DsdvRouter._merge``): (own
-        sequence number, table changed, adverts damped)."""
-        self.reserve(len(adverts))
-        own_sequence, dirty, damped, count = _merge(
-            self.slot, self.rows, self.count, own, own_sequence, stale, neighbour, adverts)
-        self.count = int(count)
-        return int(own_sequence), bool(dirty), int(damped)
-
-
 def seq_newer(a: int, b: int) -> bool:
     """Serial-number order (RFC 1982) of 32-bit sequence numbers: is ``a`` newer than ``b``?
 
@@ -145,48 +57,209 @@ def seq_newer(a: int, b: int) -> bool:
     return 0 < ((a - b) & SEQUENCE_MASK) < HALF
 
 
-_EXAMPLE = (np.full(ADDRESSES, -1, np.int32), np.zeros((4, 5), np.int64), 0)
+class RouteStore:
+    """The route tables of a process's routers; see the module docstring."""
+
+    def __init__(self) -> None:
+        self.column = np.full(ADDRESSES, -1, dtype=np.int64)
+        self.ids = np.zeros(8, dtype=np.int64)      # column -> destination
+        self.width = 0                              # columns in use
+        self.cells = _empty(1, 8)
+        self.height = 0                             # rows in use
+
+    def add_row(self) -> int:
+        """A new, empty table; returns its row."""
+        if self.height == len(self.cells):
+            self._grow(2 * self.height, self.cells.shape[1])
+        self.height += 1
+        return self.height - 1
+
+    def columns(self, destinations: np.ndarray) -> np.ndarray:
+        """The columns of ``destinations`` (0..65535), new ones added."""
+        cols = self.column[destinations]
+        if (cols < 0).any():
+            for d in destinations[cols < 0].tolist():
+                if self.column[d] < 0:
+                    self._add_column(d)
+            cols = self.column[destinations]
+        return cols
+
+    def column_of(self, destination: int) -> int:
+        c = int(self.column[destination])
+        return c if c >= 0 else self._add_column(destination)
+
+    def _add_column(self, destination: int) -> int:
+        if self.width == len(self.ids):
+            self.ids = np.concatenate([self.ids, np.zeros_like(self.ids)])
+            self._grow(len(self.cells), 2 * self.width)
+        c = self.width
+        self.column[destination], self.ids[c] = c, destination
+        self.width += 1
+        return c
+
+    def _grow(self, height: int, width: int) -> None:
+        grown = _empty(height, width)
+        grown[:self.cells.shape[0], :self.cells.shape[1]] = self.cells
+        self.cells = grown
 
 
-@kernel(*_EXAMPLE, 3, 6, 4)
-def _heard(slot: np.ndarray, rows: np.ndarray, count: int, neighbour: int, seq: int,
-           dump_seq: int) -> tuple[bool, int]:
-    """Link addition (Fig. 3.8): a neighbour heard directly is a one-hop route.
+def _empty(height: int, width: int) -> np.ndarray:
+    cells = np.zeros((height, width, 4), dtype=np.int64)
+    cells[:, :, HOPS] = NONE
+    return cells
+
+
+class RouteTable:
+    """One router's table: destination -> (next hop, hops, sequence number, changed)."""
+
+    def __init__(self, store: RouteStore | None = None) -> None:
+        self.store = store or RouteStore()
+        self.row = self.store.add_row()
+
+    def _cells(self) -> np.ndarray:
+        """This table's cells of the columns in use (a view)."""
+        return self.store.cells[self.row, :self.store.width]
+
+    def __len__(self) -> int:
+        return int(np.count_nonzero(self._cells()[:, HOPS] != NONE))
+
+    def get(self, destination: int) -> RouteEntry | None:
+        """The route to ``destination`` (a copy), or None."""
+        c = self.store.column[destination] if 0 <= destination < ADDRESSES else -1
+        if c < 0 or self.store.cells[self.row, c, HOPS] == NONE:
+            return None
+        seq, hops, nxt, changed = self.store.cells[self.row, c].tolist()
+        return RouteEntry(destination, nxt, hops, seq, bool(changed))
+
+    def set(self, entry: RouteEntry) -> None:
+        """Write one route."""
+        c = self.store.column_of(entry.destination)
+        self.store.cells[self.row, c] = (entry.sequence_number & SEQUENCE_MASK,
+                                         entry.hop_count, entry.next_hop, int(entry.changed))
+
+    def entries(self) -> list[RouteEntry]:
+        """Every route, sorted by destination (copies)."""
+        cells = self._cells()
+        cols = np.flatnonzero(cells[:, HOPS] != NONE)
+        ids = self.store.ids[cols]
+        order = np.argsort(ids)
+        return [RouteEntry(d, nxt, hops, seq, bool(changed)) for d, (seq, hops, nxt, changed)
+                in zip(ids[order].tolist(), cells[cols[order]].tolist())]
+
+    def next_hop(self, destination: int) -> int | None:
+        c = self.store.column[destination] if 0 <= destination < ADDRESSES else -1
+        if c < 0:
+            return None
+        hops = self.store.cells[self.row, c, HOPS]
+        return int(self.store.cells[self.row, c, NEXT]) if 0 <= hops < INFINITE_HOPS else None
+
+    def reachable(self) -> set[int]:
+        hops = self._cells()[:, HOPS]
+        return set(self.store.ids[:self.store.width][(hops >= 0) & (hops < INFINITE_HOPS)]
+                   .tolist())
+
+    def any_changed(self) -> bool:
+        return bool(self._cells()[:, CHANGED].any())
+
+    def clear_changed(self) -> None:
+        self._cells()[:, CHANGED] = 0
+
+    def changed_entries(self) -> list[RouteEntry]:
+        return [e for e in self.entries() if e.changed]
+
+    def break_link(self, neighbour: int) -> bool:
+        """Fig. 3.9: every finite route through ``neighbour`` gets hops = inf and the next
+        odd sequence number (one above an even number, two above an odd one). Returns
+        whether any route changed."""
+        cells = self._cells()
+        hit = (cells[:, NEXT] == neighbour) & (cells[:, HOPS] >= 0) \
+            & (cells[:, HOPS] < INFINITE_HOPS)
+        if not hit.any():
+            return False
+        seq = cells[hit, SEQ]
+        cells[hit, SEQ] = (seq + 1 + (seq & 1)) & SEQUENCE_MASK
+        cells[hit, HOPS] = INFINITE_HOPS
+        cells[hit, CHANGED] = 1
+        return True
+
+
+def heard(tables: Sequence[RouteTable], neighbour: int, seq: int | None,
+          dump_seq: int = 0) -> list[bool]:
+    """Link addition at every table of ``tables`` (one store) for ``neighbour`` heard
+    directly (``_heard``; ``seq`` None: heard in a dump headed ``dump_seq``). Returns
+    which tables changed."""
+    store = tables[0].store
+    col = store.column_of(neighbour)         # may grow the cells: before reading them
+    rows = np.array([t.row for t in tables], dtype=np.int64)
+    changed = _heard(store.cells, rows, col, neighbour, -1 if seq is None else seq,
+                     dump_seq)
+    return changed.tolist()
+
+
+def merge(tables: Sequence[RouteTable], owns: Sequence[int], sequences: Sequence[int],
+          stale: Sequence[int], neighbour: int, adverts: np.ndarray) -> tuple[
+              list[int], list[bool], list[int]]:
+    """The selection rules at every table of ``tables`` (one store) on ``neighbour``'s
+    ``adverts`` (k, 3: destination, hops, sequence number), for routers ``owns`` whose
+    own numbers are ``sequences`` and damping horizons ``stale`` (``_merge``). Returns
+    each router's own number, whether its table changed and how many adverts it damped."""
+    store = tables[0].store
+    cols = store.columns(adverts[:, 0])      # may grow the cells: before reading them
+    rows = np.array([t.row for t in tables], dtype=np.int64)
+    own = np.array(owns, dtype=np.int64)
+    own_seq = np.array(sequences, dtype=np.int64)
+    dirty, damped = _merge(store.cells, rows, own, own_seq,
+                           np.array(stale, dtype=np.int64), neighbour, cols, adverts)
+    return own_seq.tolist(), dirty.tolist(), damped.tolist()
+
+
+_CELLS = _empty(2, 4)
+_ROWS = np.zeros(1, dtype=np.int64)
+
+
+@kernel(_CELLS, _ROWS, 1, 3, 6, 4)
+def _heard(cells: np.ndarray, rows: np.ndarray, col: int, neighbour: int, seq: int,
+           dump_seq: int) -> np.ndarray:
+    """Link addition (Fig. 3.8) in each table of ``rows``: a neighbour heard directly
+    (column ``col``) is a one-hop route.
 
     A heartbeat carries the neighbour's own (even) sequence number ``seq``. If we had
     marked the route broken (odd number), the direct link is proof enough: the route is
     restored with the next even number, which outbids the break. A dump heard first
     (``seq`` < 0) makes the route a step below the sender's own number ``dump_seq`` (its
     header), older than its next heartbeat (a fixed 0 could be newer than a boot number).
-    Returns (table changed, rows in use); ``rows`` has room for one more.
+    Returns which tables changed.
     """
-    r = slot[neighbour]
-    if seq < 0:
-        if r >= 0:
-            return False, count
-        best = (dump_seq - SEQUENCE_STEP) & SEQUENCE_MASK
-    else:
-        if r >= 0:
-            ahead = (seq - rows[r, SEQ]) & SEQUENCE_MASK
-            if rows[r, HOPS] == 1 and rows[r, NEXT] == neighbour and not 0 < ahead < HALF:
-                return False, count
-            restored = (rows[r, SEQ] + (rows[r, SEQ] & 1)) & SEQUENCE_MASK
+    changed = np.zeros(rows.shape[0], dtype=np.bool_)
+    for i in range(rows.shape[0]):
+        cell = cells[rows[i], col]
+        known = cell[HOPS] != NONE
+        if seq < 0:
+            if known:
+                continue
+            best = (dump_seq - SEQUENCE_STEP) & SEQUENCE_MASK
+        elif known:
+            ahead = (seq - cell[SEQ]) & SEQUENCE_MASK
+            if cell[HOPS] == 1 and cell[NEXT] == neighbour and not 0 < ahead < HALF:
+                continue
+            restored = (cell[SEQ] + (cell[SEQ] & 1)) & SEQUENCE_MASK
             best = restored if 0 < ((restored - seq) & SEQUENCE_MASK) < HALF else seq
         else:
             best = seq
-    if r < 0:
-        r = slot[neighbour] = count
-        count += 1
-    rows[r, DEST], rows[r, SEQ], rows[r, HOPS] = neighbour, best, 1
-    rows[r, NEXT], rows[r, CHANGED] = neighbour, 1
-    return True, count
+        cell[SEQ], cell[HOPS], cell[NEXT], cell[CHANGED] = best, 1, neighbour, 1
+        changed[i] = True
+    return changed
 
 
-@kernel(*_EXAMPLE, 7, 10, 12, 3, np.array([[5, 1, 8], [7, 0, 4]], dtype=np.int64))
-def _merge(slot: np.ndarray, rows: np.ndarray, count: int, own: int, own_sequence: int,
-           stale: int, neighbour: int, adverts: np.ndarray) -> tuple[int, bool, int, int]:
-    """Apply the two selection rules (3.1.2.1) to a neighbour's ``adverts`` (k, 3:
-    destination, hops as advertised, sequence number).
+@kernel(_CELLS, _ROWS, np.array([7]), np.array([10]), np.array([12]), 3, np.array([0, 1]),
+        np.array([[5, 1, 8], [7, 0, 4]], dtype=np.int64))
+def _merge(cells: np.ndarray, rows: np.ndarray, own: np.ndarray, own_seq: np.ndarray,
+           stale: np.ndarray, neighbour: int, cols: np.ndarray, adverts: np.ndarray) -> tuple[
+               np.ndarray, np.ndarray]:
+    """The two selection rules (3.1.2.1) on a neighbour's ``adverts`` (k, 3: destination,
+    hops as advertised, sequence number; destination k in column ``cols[k]``) in each
+    table of ``rows``, router ``own[i]`` with own number ``own_seq[i]`` (updated) and
+    damping horizon ``stale[i]``.
 
     A newer sequence number always wins; with the same number a shorter path wins. A
     newer broken-link advert (infinite hops) invalidates the route (Fig. 3.9). Damping:
@@ -195,43 +268,44 @@ def _merge(slot: np.ndarray, rows: np.ndarray, count: int, own: int, own_sequenc
     soon; ignoring an advert is the same as losing it, so loop freedom is kept). Only a
     new metric marks a route changed (a triggered update); a newer number alone waits
     for the next full dump (DSDV's settling rule, Perkins and Bhagwat 1994). An advert
-    of ourselves with a newer (odd, broken) number is outbid. Returns (own sequence
-    number, table changed, adverts damped, rows in use); ``rows`` has room for k more.
+    of the router itself with a newer (odd, broken) number is outbid. Returns whether
+    each table changed and how many adverts each damped.
     """
-    dirty = False
-    damped = 0
-    for k in range(adverts.shape[0]):
-        dest, hops, sequence = adverts[k, 0], adverts[k, 1], adverts[k, 2]
-        if dest == own:
-            if 0 < ((sequence - own_sequence) & SEQUENCE_MASK) < HALF:
-                own_sequence = (sequence + (1 if sequence % 2 else 2)) & SEQUENCE_MASK
-            continue
-        hops = INFINITE_HOPS if hops >= INFINITE_HOPS - 1 else hops + 1
-        r = slot[dest]
-        if r < 0:
-            if hops < INFINITE_HOPS:
-                r = slot[dest] = count
-                count += 1
-                rows[r, DEST], rows[r, SEQ], rows[r, HOPS] = dest, sequence, hops
-                rows[r, NEXT], rows[r, CHANGED] = neighbour, 1
-                dirty = True
-            continue
-        ahead = (sequence - rows[r, SEQ]) & SEQUENCE_MASK
-        if ahead == 0:
-            if hops >= rows[r, HOPS]:
-                continue                    # same number, no shorter path
-        elif ahead >= HALF:
-            continue                        # older than what we hold
-        elif hops >= INFINITE_HOPS:
-            rows[r, HOPS], rows[r, SEQ], rows[r, CHANGED] = INFINITE_HOPS, sequence, 1
-            dirty = True
-            continue
-        elif not (rows[r, NEXT] == neighbour or hops <= rows[r, HOPS]
-                  or rows[r, HOPS] >= INFINITE_HOPS or ahead >= stale):
-            damped += 1
-            continue
-        if rows[r, HOPS] != hops:
-            rows[r, CHANGED] = 1
-            dirty = True
-        rows[r, NEXT], rows[r, HOPS], rows[r, SEQ] = neighbour, hops, sequence
-    return own_sequence, dirty, damped, count
+    n = rows.shape[0]
+    dirty = np.zeros(n, dtype=np.bool_)
+    damped = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        table = cells[rows[i]]
+        for k in range(adverts.shape[0]):
+            dest, hops, sequence = adverts[k, 0], adverts[k, 1], adverts[k, 2]
+            if dest == own[i]:
+                if 0 < ((sequence - own_seq[i]) & SEQUENCE_MASK) < HALF:
+                    own_seq[i] = (sequence + (1 if sequence % 2 else 2)) & SEQUENCE_MASK
+                continue
+            hops = INFINITE_HOPS if hops >= INFINITE_HOPS - 1 else hops + 1
+            cell = table[cols[k]]
+            if cell[HOPS] == NONE:
+                if hops < INFINITE_HOPS:
+                    cell[SEQ], cell[HOPS], cell[NEXT], cell[CHANGED] = \
+                        sequence, hops, neighbour, 1
+                    dirty[i] = True
+                continue
+            ahead = (sequence - cell[SEQ]) & SEQUENCE_MASK
+            if ahead == 0:
+                if hops >= cell[HOPS]:
+                    continue                    # same number, no shorter path
+            elif ahead >= HALF:
+                continue                        # older than what we hold
+            elif hops >= INFINITE_HOPS:
+                cell[HOPS], cell[SEQ], cell[CHANGED] = INFINITE_HOPS, sequence, 1
+                dirty[i] = True
+                continue
+            elif not (cell[NEXT] == neighbour or hops <= cell[HOPS]
+                      or cell[HOPS] >= INFINITE_HOPS or ahead >= stale[i]):
+                damped[i] += 1
+                continue
+            if cell[HOPS] != hops:
+                cell[CHANGED] = 1
+                dirty[i] = True
+            cell[NEXT], cell[HOPS], cell[SEQ] = neighbour, hops, sequence
+    return dirty, damped

@@ -39,6 +39,7 @@ from swarm_agent.brain import AgentBrain
 from swarm_agent.frame_auth import FrameAuth, FrameAuthError
 from swarm_agent.mission_radio import MeshListener
 from swarm_agent.reception import receive
+from swarm_agent.route_table import RouteStore
 from swarm_common.fleet import place_fleet, PLACEMENT_STD_M, random_fleet, RobotSpec
 from swarm_common.robot_types import load_robot_types
 from swarm_common.shapes import Shape
@@ -188,6 +189,7 @@ class HeadlessSwarm:
         self.alive = self.world.alive
         self.radii = self.world.radii
         self._keyring = keyring
+        self._routes = RouteStore()   # every brain's route table: one call per frame heard
         self.brains: list[AgentBrain | None] = [self._new_brain(r, 0.0) for r in fleet]
         self.mission = Mission(
             MissionConfig(method=scenario.method,
@@ -234,7 +236,8 @@ class HeadlessSwarm:
                            seed=sc.seed * 100_003 + r.id,
                            localization_period_s=sc.localization_period_s,
                            initial_position_std=sc.placement_std_m,
-                           keyring=self._keyring, auth=sc.auth, boot_time_s=boot_time_s)
+                           keyring=self._keyring, auth=sc.auth, boot_time_s=boot_time_s,
+                           route_store=self._routes)
         if t > 0.0:
             brain.localizer.restarted(t)
         return brain
