@@ -230,8 +230,7 @@ class DsdvRouter:
         if t >= self._next_full:
             self._next_full = t + self.config.full_dump_period_s
             self.sequence = _seq_add(self.sequence, SEQUENCE_STEP)
-            adverts = [Advert(self.id, 0, self.sequence)] + [
-                Advert(r.destination, r.hop_count, r.sequence_number) for r in self.routes()]
+            adverts = [Advert(self.id, 0, self.sequence), *self.route_table.adverts()]
             for frame in wire.encode_adverts(self.sequence, adverts):
                 out.append(self._packet(BROADCAST, Kind.DSDV_FULL, frame, ttl=1))
             self.route_table.clear_changed()
@@ -240,8 +239,7 @@ class DsdvRouter:
         elif (self._dirty
               and t - self._last_incremental >= self.config.incremental_min_interval_s
               and self.route_table.any_changed()):
-            adverts = [Advert(r.destination, r.hop_count, r.sequence_number)
-                       for r in self.route_table.changed_entries()]
+            adverts = self.route_table.adverts(changed_only=True)
             for frame in wire.encode_adverts(self.sequence, adverts):
                 out.append(self._packet(BROADCAST, Kind.DSDV_INCREMENTAL, frame, ttl=1))
             self.route_table.clear_changed()

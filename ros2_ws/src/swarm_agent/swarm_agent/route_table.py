@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from swarm_agent.wire import INFINITE_HOPS
+from swarm_agent.wire import Advert, INFINITE_HOPS
 from swarm_common.jit import kernel
 
 SEQUENCE_STEP = 2           # own sequence numbers grow by this at every full dump (even)
@@ -164,8 +164,18 @@ class RouteTable:
     def clear_changed(self) -> None:
         self._cells()[:, CHANGED] = 0
 
-    def changed_entries(self) -> list[RouteEntry]:
-        return [e for e in self.entries() if e.changed]
+    def adverts(self, changed_only: bool = False) -> list[Advert]:
+        """The routes as adverts (destination, hops, sequence number), sorted by
+        destination: all of them (a full dump) or those changed (an incremental one)."""
+        cells = self._cells()
+        keep = cells[:, HOPS] != NONE
+        if changed_only:
+            keep &= cells[:, CHANGED] != 0
+        cols = np.flatnonzero(keep)
+        cols = cols[np.argsort(self.store.ids[cols])]
+        return list(map(Advert._make, zip(self.store.ids[cols].tolist(),
+                                          cells[cols, HOPS].tolist(),
+                                          cells[cols, SEQ].tolist())))
 
     def break_link(self, neighbour: int) -> bool:
         """Fig. 3.9: every finite route through ``neighbour`` gets hops = inf and the next
