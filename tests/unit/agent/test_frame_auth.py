@@ -7,17 +7,20 @@ source; everything else is dropped and counted by kind.
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from swarm_agent.agent_factory import DEFAULT_KEY_FILE, make_brain, swarm_keyring
 from swarm_agent.frame_auth import (
+    _accept,
     COUNTER_SCALE,
     FrameAuth,
     FrameAuthError,
     Keyring,
     load_keyring,
     new_key_file_text,
-    ReplayWindow,
+    open_all,
+    ReplayStore,
     TRAILER_BYTES,
     WINDOW,
 )
@@ -106,10 +109,48 @@ def test_windows_are_per_source():
     assert receiver.stats == {}
 
 
+@pytest.mark.usefixtures('kernels')
 def test_replay_window_bitmap():
-    window = ReplayWindow(4)
-    assert [window.check(1, c) for c in (10, 8, 8, 12, 9, 8, 6)] == [
-        None, None, 'auth_replay', None, None, 'auth_too_old', 'auth_too_old']
+    """A window of 4 below the highest counter: 0 accepted, 1 a replay, 2 too old."""
+    store = ReplayStore()
+    rows, col = np.array([store.add_row()]), store.column_of(1)
+    verdicts = [int(_accept(store.cells, rows, col, np.uint64(c), np.uint64(4),
+                            np.uint64(0b1111))[0]) for c in (10, 8, 8, 12, 9, 8, 6)]
+    assert verdicts == [0, 0, 1, 0, 0, 2, 2]
+
+
+@pytest.mark.usefixtures('kernels')
+def test_counters_near_two_to_the_64_stay_exact():
+    """Counters are unsigned 64-bit: the window works at the top of the range, where a
+    float would merge neighbouring counters."""
+    store = ReplayStore()
+    rows, col = np.array([store.add_row()]), store.column_of(9)
+    top = (1 << 64) - 3
+    verdicts = [int(_accept(store.cells, rows, col, np.uint64(c), np.uint64(64),
+                            np.uint64((1 << 64) - 1))[0]) for c in (top, top + 1, top, top - 1)]
+    assert verdicts == [0, 0, 1, 0]
+    assert int(store.cells[0, col, 0]) == top + 1
+
+
+@pytest.mark.usefixtures('kernels')
+def test_one_frame_opened_by_many_receivers_as_one_by_one():
+    """``open_all`` gives each receiver what its own ``open`` would: receivers that heard
+    the frame already reject a replay, a receiver under another key rejects the tag, the
+    rest accept; a second store and another window size are grouped apart."""
+    sender = FrameAuth(KEY, _clock())
+    frames = [sender.seal(_frame()) for _ in range(3)]
+    store = ReplayStore()
+
+    def receivers():
+        return [FrameAuth(KEY, _clock(), store=store), FrameAuth(KEY, _clock(), store=store),
+                FrameAuth(OTHER, _clock(), store=store), FrameAuth(KEY, _clock()),
+                FrameAuth(KEY, _clock(), window=1, store=store)]
+    together, alone = receivers(), receivers()
+    together[1].open(frames[2]), alone[1].open(frames[2])    # receiver 1 heard a later one
+    for frame in (frames[0], frames[2], frames[1]):
+        assert open_all(together, frame) == [a.open(frame) for a in alone]
+    assert [a.stats for a in together] == [a.stats for a in alone] == [
+        {}, {'auth_replay': 1}, {'auth_bad_tag': 3}, {}, {'auth_too_old': 1}]
 
 
 def test_a_forged_frame_does_not_move_the_window():

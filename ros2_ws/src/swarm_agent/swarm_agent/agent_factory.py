@@ -15,7 +15,7 @@ import numpy as np
 
 from swarm_agent.brain import AgentBrain
 from swarm_agent.brain_config import BrainConfig, BrainConfigError
-from swarm_agent.frame_auth import FrameAuth, Keyring, load_keyring
+from swarm_agent.frame_auth import FrameAuth, Keyring, load_keyring, ReplayStore
 from swarm_agent.localization import LocalizationConfig
 from swarm_agent.lqr import design_lqr
 from swarm_agent.route_table import RouteStore
@@ -53,7 +53,8 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
                settings: Mapping[str, Any] | None = None,
                keyring: Keyring | None = None, auth: bool = True,
                boot_time_s: float | None = None,
-               route_store: RouteStore | None = None) -> AgentBrain:
+               route_store: RouteStore | None = None,
+               replay_store: ReplayStore | None = None) -> AgentBrain:
     """An AgentBrain for one robot, with the LQR gains of its type (eqs. 3.108-3.111).
 
     ``initial_position`` is the robot's deployment prior, the position it was configured
@@ -68,7 +69,8 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
     numbers are newer than its previous run's (``dsdv.boot_sequence``): None takes the
     wall clock, which survives a process restart; the headless evaluator passes its
     simulated time, so its runs stay reproducible. Brains of one process share
-    ``route_store`` (``swarm_agent.route_table``: a frame's receivers routed in one call).
+    ``route_store`` and ``replay_store`` (``swarm_agent.route_table``,
+    ``frame_auth.ReplayStore``: a frame's receivers opened and routed in one call each).
     """
     types = load_robot_types(robot_types_file)
     robot = robot_type(types, agent_type)
@@ -92,7 +94,7 @@ def make_brain(*, agent_id: int, agent_type: int, is_beacon: bool = False,
     # eq. 3.111's u_max shapes the LQR weights of the linear model; the actuator must
     # also overcome Coulomb friction (mu_1 m g is 3.1 N for type 3, above u_max alone).
     u_limit = design.u_max + 2.0 * robot.dry_friction * robot.mass * GRAVITY
-    frame_auth = FrameAuth(keyring or swarm_keyring()) if auth else None
+    frame_auth = FrameAuth(keyring or swarm_keyring(), store=replay_store) if auth else None
     return AgentBrain(config, robot, gains, initial_position,
                       np.random.default_rng(seed), u_max=u_limit, auth=frame_auth,
                       boot_time_s=time.time() if boot_time_s is None else boot_time_s,

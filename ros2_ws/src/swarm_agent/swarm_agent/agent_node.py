@@ -88,6 +88,7 @@ from swarm_agent.conversions import (
     stamp_seconds,
     yaw_of,
 )
+from swarm_agent.frame_auth import ReplayStore
 from swarm_agent.packet import Packet
 from swarm_agent.route_table import RouteStore
 from swarm_common import qos
@@ -216,7 +217,8 @@ class AgentNode(Node):
                  own_timers: bool = True, shared_inputs: bool = False,
                  command_sink: Callable[[int, float, float, float], None] | None = None,
                  tf_sink: Callable[[TransformStamped], None] | None = None,
-                 route_store: RouteStore | None = None, **kwargs) -> None:
+                 route_store: RouteStore | None = None,
+                 replay_store: ReplayStore | None = None, **kwargs) -> None:
         """``tx_sink`` takes the radio frames instead of this node's own batching
         publisher (composed_node: one batch of every agent's frames per period).
         Without ``own_timers`` the node creates no control and introspection timers:
@@ -231,8 +233,9 @@ class AgentNode(Node):
         stamp s, fx, fy)`` takes the force commands instead of the cmd_force topic
         (composed_node: one ForceBatch per step), ``tf_sink`` the transform of the
         estimate instead of this node's /tf publisher (composed_node: one TFMessage of
-        every agent per state period). ``route_store`` holds the route tables of the
-        process's brains (composed_node: one for all; ``swarm_agent.route_table``)."""
+        every agent per state period). ``route_store`` and ``replay_store`` hold the route
+        tables and replay windows of the process's brains (composed_node: one of each for
+        all; ``swarm_agent.route_table``, ``frame_auth.ReplayStore``)."""
         super().__init__(node_name, namespace=namespace, **kwargs)
         # The node's own parameters are read once, at start: read-only.
         for name, (default, text) in PARAMETERS.items():
@@ -262,7 +265,8 @@ class AgentNode(Node):
             seed=p['seed'], localization_period_s=p['localization_period_s'],
             robot_types_file=p['robot_types_file'] or None,
             external_pose=p['external_pose'], initial_position_std=p['placement_std_m'],
-            settings=settings, keyring=keyring, auth=p['auth'], route_store=route_store)
+            settings=settings, keyring=keyring, auth=p['auth'], route_store=route_store,
+            replay_store=replay_store)
         self.add_on_set_parameters_callback(
             lambda params: set_brain_parameters([self.brain], params))
         self._type_counts = p['type_counts']

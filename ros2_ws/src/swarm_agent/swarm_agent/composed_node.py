@@ -78,6 +78,7 @@ from swarm_agent.agent_node import (
 )
 from swarm_agent.brain_config import BrainConfigError
 from swarm_agent.conversions import sensor_batch_from_msg, SensorInputs, stamp_seconds
+from swarm_agent.frame_auth import ReplayStore
 from swarm_agent.packet import PacketError
 from swarm_agent.reception import receive
 from swarm_agent.route_table import RouteStore
@@ -166,7 +167,8 @@ class ComposedAgents(Node):
                            if p['sensor_batch'] else None)
         # Every agent's TF of one state period in one message (reliable, as tf2 listens).
         self._transforms: list[TransformStamped] = []
-        self._route_store = RouteStore()   # every agent's route table (swarm_agent.route_table)
+        # Every agent's route table and replay windows: one call per frame heard.
+        self._route_store, self._replay_store = RouteStore(), ReplayStore()
         self._tf = self.create_publisher(TFMessage, '/tf', QoSProfile(**qos.STATE))
         for robot in robots:
             agent_id = int(robot['id'])
@@ -203,6 +205,7 @@ class ComposedAgents(Node):
                              command_sink=(self._command if p['sensor_batch'] else None),
                              tf_sink=self._transforms.append,
                              route_store=self._route_store,
+                             replay_store=self._replay_store,
                              parameter_overrides=overrides, context=self.context,
                              start_parameter_services=False)
             if self._sim_time is not None:

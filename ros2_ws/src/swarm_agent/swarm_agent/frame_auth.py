@@ -46,7 +46,7 @@ of the 100-byte XBee payload on every frame.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 import functools
 import hmac
@@ -56,9 +56,11 @@ import struct
 import sys
 import time
 
+import numpy as np
 import yaml
 
 from swarm_agent.packet import Packet
+from swarm_common.jit import kernel
 
 TAG_BYTES = 8
 _TRAILER = struct.Struct('<BQ')          # key id, counter (then the tag)
@@ -167,33 +169,70 @@ def _verified(key: bytes, source: int, destination: int, kind: int, sequence: in
     return Packet(source, destination, kind, sequence, ttl, payload[:-TRAILER_BYTES])
 
 
-class ReplayWindow:
-    """Highest counter accepted per source and the bitmap of the WINDOW below it."""
+class ReplayStore:
+    """The replay windows of every receiver of a process (the evaluator's brains, a
+    composed container's agents; a ``FrameAuth`` alone has a store of its own): row p is
+    receiver p, column c the source ``column`` maps to, and ``cells[p, c]`` = (highest
+    counter accepted, bitmap of the ``WINDOW`` below it; 0: nothing heard yet)."""
 
-    def __init__(self, size: int = WINDOW) -> None:
-        self.size = size
-        self._full = (1 << size) - 1
-        self._state: dict[int, list[int]] = {}   # source -> [highest, bitmap]
+    def __init__(self) -> None:
+        self.column = np.full(1 << 16, -1, dtype=np.int64)
+        self.width = 0
+        self.cells = np.zeros((1, 8, 2), dtype=np.uint64)
+        self.height = 0
 
-    def check(self, source: int, counter: int) -> str | None:
-        """None when ``counter`` is fresh (and record it), else the rejection kind."""
-        state = self._state.get(source)
-        if state is None:
-            self._state[source] = [counter, 1]
-            return None
-        top = state[0]
-        if counter > top:   # the common case: the source's next frame
+    def add_row(self) -> int:
+        if self.height == len(self.cells):
+            self._grow(2 * self.height, self.cells.shape[1])
+        self.height += 1
+        return self.height - 1
+
+    def column_of(self, source: int) -> int:
+        c = int(self.column[source])
+        if c < 0:
+            if self.width == self.cells.shape[1]:
+                self._grow(len(self.cells), 2 * self.width)
+            c = self.column[source] = self.width
+            self.width += 1
+        return c
+
+    def _grow(self, height: int, width: int) -> None:
+        grown = np.zeros((height, width, 2), dtype=np.uint64)
+        grown[:self.cells.shape[0], :self.cells.shape[1]] = self.cells
+        self.cells = grown
+
+
+_VERDICTS = (None, 'auth_replay', 'auth_too_old')
+_ONE = np.uint64(1)
+
+
+@kernel(np.zeros((1, 1, 2), dtype=np.uint64), np.zeros(1, dtype=np.int64), 0,
+        np.uint64(5), np.uint64(64), np.uint64(COUNTER_MASK))
+def _accept(cells: np.ndarray, rows: np.ndarray, col: int, counter: np.uint64,
+            size: np.uint64, full: np.uint64) -> np.ndarray:
+    """The replay window (RFC 4303 3.4.3) of each receiver of ``rows`` for one frame of
+    the source in column ``col``: 0 accepted (and recorded), 1 a replay, 2 too old.
+
+    A counter above the highest moves the window; one inside it is accepted once; one
+    below it is too old. All in unsigned 64-bit arithmetic, as the counters are.
+    """
+    verdict = np.zeros(rows.shape[0], dtype=np.int8)
+    for i in range(rows.shape[0]):
+        cell = cells[rows[i], col]
+        top, bits = cell[0], cell[1]
+        if bits == 0 or counter > top:     # the first frame heard, or the next one
             shift = counter - top
-            state[1] = ((state[1] << shift) | 1) & self._full if shift < self.size else 1
-            state[0] = counter
-            return None
+            cell[1] = ((bits << shift) | _ONE) & full if bits != 0 and shift < size else _ONE
+            cell[0] = counter
+            continue
         offset = top - counter
-        if offset >= self.size:
-            return 'auth_too_old'
-        if state[1] >> offset & 1:
-            return 'auth_replay'
-        state[1] |= 1 << offset
-        return None
+        if offset >= size:
+            verdict[i] = 2
+        elif (bits >> offset) & _ONE:
+            verdict[i] = 1
+        else:
+            cell[1] = bits | (_ONE << offset)
+    return verdict
 
 
 class _Verifier:
@@ -241,14 +280,20 @@ class FrameAuth:
     """Seals this node's frames and opens those it hears; see the module docstring."""
 
     def __init__(self, keyring: Keyring, clock: Callable[[], float] = time.time,
-                 window: int = WINDOW) -> None:
+                 window: int = WINDOW, store: ReplayStore | None = None) -> None:
+        """``store`` holds the replay windows of the process's receivers (a frame is
+        checked for all of them in one call, ``open_all``); None: one of its own."""
+        if not 1 <= window <= WINDOW:
+            raise FrameAuthError(f'replay window {window} must be 1..{WINDOW} counters')
         self.keyring = keyring
         self._seal_key = keyring.key(keyring.seal_id)
         self._verify = _verifier(keyring)
         self._counter = boot_counter(clock()) - 1
-        self.window = ReplayWindow(window)
-        self._windows = self.window._state
-        self._size, self._full = window, (1 << window) - 1
+        self.store = store or ReplayStore()
+        self.row = self.store.add_row()
+        self.window = window
+        self._size = np.uint64(window)
+        self._full = np.uint64((1 << window) - 1)
         self.stats: dict[str, int] = {}
 
     @property
@@ -267,31 +312,48 @@ class FrameAuth:
                       packet.ttl, body + tag)
 
     def open(self, packet: Packet) -> Packet | None:
-        """The frame with the trailer removed, or None (counted) when it fails.
-
-        Runs for every frame every receiver hears (2.6 million times in the 50-agent
-        evaluator run): the kept result of the last frame checked and the window's
-        common case, the source's next counter, are inlined.
-        """
-        verify = self._verify
-        result = verify._result if packet is verify._last else verify(packet)
-        if result.__class__ is str:
-            return self._reject(result)
-        opened, counter = result
-        state = self._windows.get(packet.source)
-        if state is not None and counter > state[0]:   # ReplayWindow.check, inlined
-            shift = counter - state[0]
-            state[1] = ((state[1] << shift) | 1) & self._full if shift < self._size else 1
-            state[0] = counter
-            return opened
-        verdict = self.window.check(packet.source, counter)
-        if verdict is not None:
-            return self._reject(verdict)
-        return opened
+        """The frame with the trailer removed, or None (counted) when it fails."""
+        return open_all((self,), packet)[0]
 
     def _reject(self, kind: str) -> None:
         self.stats[kind] = self.stats.get(kind, 0) + 1
         return None
+
+
+def open_all(auths: Sequence[FrameAuth], packet: Packet) -> list[Packet | None]:
+    """``packet`` opened by each of ``auths`` (the receivers of one transmission in this
+    process; distinct): the frame without its trailer, or None (counted by that
+    receiver) when it fails. The tag is checked once per keyring, and each receiver's
+    replay window is applied in one call per store (``_accept``)."""
+    out: list[Packet | None] = [None] * len(auths)
+    first = auths[0]
+    if all(a._verify is first._verify and a.store is first.store and a._size == first._size
+           for a in auths):
+        groups = [list(range(len(auths)))]
+    else:
+        keyed: dict[tuple[int, int, int], list[int]] = {}
+        for i, a in enumerate(auths):
+            keyed.setdefault((id(a._verify), id(a.store), a.window), []).append(i)
+        groups = list(keyed.values())
+    for group in groups:
+        auth = auths[group[0]]
+        result = auth._verify(packet)
+        if result.__class__ is str:
+            for i in group:
+                auths[i]._reject(result)
+            continue
+        opened, counter = result
+        store = auth.store
+        col = store.column_of(packet.source)     # may grow the cells: before reading them
+        rows = np.array([auths[i].row for i in group], dtype=np.int64)
+        verdicts = _accept(store.cells, rows, col, np.uint64(counter), auth._size,
+                           auth._full).tolist()
+        for i, verdict in zip(group, verdicts):
+            if verdict:
+                auths[i]._reject(_VERDICTS[verdict])
+            else:
+                out[i] = opened
+    return out
 
 
 def main() -> None:

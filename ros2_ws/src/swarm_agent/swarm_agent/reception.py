@@ -3,7 +3,8 @@
 A transmission reaches every robot in range (thesis 3.1.2); a process that holds many
 brains (the headless evaluator) hands it to all its receivers at once, and a node with
 one brain hands it to that one (``AgentBrain.on_packet``). Both run this code: the frame
-is opened by each receiver's own replay window (``frame_auth``), then routed by every
+is opened by every receiver's own replay window in one call (``frame_auth.open_all``),
+then routed by every
 receiving router in one call (``dsdv.hear``: the frame's checks and decoding once, each
 router's state after), and what the routers deliver is consumed by each brain.
 """
@@ -14,6 +15,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 from swarm_agent.dsdv import hear
+from swarm_agent.frame_auth import open_all
 from swarm_agent.packet import Packet
 
 if TYPE_CHECKING:
@@ -22,12 +24,15 @@ if TYPE_CHECKING:
 
 def receive(t: float, packet: Packet, brains: Sequence[AgentBrain]) -> None:
     """``packet``, heard at ``t`` by each of ``brains`` (distinct brains)."""
+    auths = [brain.auth for brain in brains]
+    if any(auth is None for auth in auths):   # unauthenticated brains (comparisons)
+        frames = [packet if auth is None else auth.open(packet) for auth in auths]
+    else:
+        frames = open_all(auths, packet)
     opened: Packet | None = None
     group: list[AgentBrain] = []       # the receivers that opened it to ``opened``
     others: list[tuple[AgentBrain, Packet]] = []
-    for brain in brains:
-        auth = brain.auth
-        frame = packet if auth is None else auth.open(packet)
+    for brain, frame in zip(brains, frames):
         if frame is None:
             continue                    # rejected, counted by its FrameAuth
         if opened is None:

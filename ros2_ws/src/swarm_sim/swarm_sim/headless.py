@@ -36,7 +36,7 @@ import numpy as np
 
 from swarm_agent.agent_factory import make_brain, swarm_keyring
 from swarm_agent.brain import AgentBrain
-from swarm_agent.frame_auth import FrameAuth, FrameAuthError
+from swarm_agent.frame_auth import FrameAuth, FrameAuthError, ReplayStore
 from swarm_agent.mission_radio import MeshListener
 from swarm_agent.reception import receive
 from swarm_agent.route_table import RouteStore
@@ -189,7 +189,8 @@ class HeadlessSwarm:
         self.alive = self.world.alive
         self.radii = self.world.radii
         self._keyring = keyring
-        self._routes = RouteStore()   # every brain's route table: one call per frame heard
+        # Every brain's route table and replay windows: one call per frame heard.
+        self._routes, self._windows = RouteStore(), ReplayStore()
         self.brains: list[AgentBrain | None] = [self._new_brain(r, 0.0) for r in fleet]
         self.mission = Mission(
             MissionConfig(method=scenario.method,
@@ -237,7 +238,7 @@ class HeadlessSwarm:
                            localization_period_s=sc.localization_period_s,
                            initial_position_std=sc.placement_std_m,
                            keyring=self._keyring, auth=sc.auth, boot_time_s=boot_time_s,
-                           route_store=self._routes)
+                           route_store=self._routes, replay_store=self._windows)
         if t > 0.0:
             brain.localizer.restarted(t)
         return brain
