@@ -34,8 +34,8 @@ def test_numba_is_installed_and_kernels_run_compiled():
     really are compiled."""
     import numba
     assert jit.compiled()
-    assert isinstance(scaled_sum.kernel.compiled, numba.core.registry.CPUDispatcher)
     assert scaled_sum(np.arange(4.0), 0.5) == 3.0
+    assert isinstance(scaled_sum.kernel.compiled, numba.core.registry.CPUDispatcher)
     assert scaled_sum.kernel.compiled.signatures, 'the call ran the compiled code'
 
 

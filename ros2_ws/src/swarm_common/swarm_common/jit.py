@@ -2,9 +2,10 @@
 
 A kernel is a plain Python function of numbers and numpy arrays, written as loops (the
 form numba compiles well and the form a reader checks against the thesis). ``kernel``
-returns a function that runs it compiled by ``numba.njit`` (machine code cached on disk
-beside the source, so a process compiles it once per machine) and, where numba cannot be
-used, runs the same Python source:
+returns a function that runs it compiled by ``numba.njit`` (numba is imported at the
+first call of a kernel, so a process that calls none does not load it; machine code is
+cached on disk beside the source, so it is compiled once per machine) and, where numba
+cannot be used, runs the same Python source:
 
 - ``SWARM_JIT=0`` in the environment: the Python source, no numba import.
 - numba not installed, or a kernel that fails to compile: the Python source, with one
@@ -39,6 +40,8 @@ LOG = logging.getLogger(__name__)
 ENV = 'SWARM_JIT'
 
 _kernels: list[_Kernel] = []
+_helpers: list[Callable] = []
+_registered = 0             # helpers registered with numba so far
 _numba: Any = None          # the numba module once imported; False: not available
 _python = False             # use_python(True): every kernel runs its Python source
 
@@ -61,27 +64,36 @@ def _load_numba() -> Any:
 
 
 class _Kernel:
-    """One kernel: its Python source, its compiled form (None: runs as Python) and what
-    runs now (``run``: the first call compiles, then the compiled code runs)."""
+    """One kernel: its Python source, its compiled form and what runs now (``run``: the
+    first call imports numba and compiles, then the compiled code runs; a process that
+    never calls a kernel never imports numba)."""
 
     def __init__(self, source: Callable, example: tuple) -> None:
         self.source = source
         self.example = example
-        numba = _load_numba()
-        self.compiled = numba.njit(cache=True, nogil=True)(source) if numba else None
+        self.compiled: Any = None   # numba's dispatcher, once made
+        self.failed = False         # numba unavailable or the compile failed: source runs
         self.ready = False          # compiled for the types it is called with
         self.run: Callable = self._current()
 
     def _current(self) -> Callable:
-        if _python or self.compiled is None:
+        if _python or self.failed:
             return self.source
         return self.compiled if self.ready else self._first
 
     def _first(self, *args: Any) -> Any:
         """Compile for the types of ``args``, then run; a failed compile (numba raises
         its own errors and, on some unsupported code, plain ones) runs the source."""
+        numba = _load_numba()
+        if not numba:
+            self.failed = True
+            self.run = self.source
+            return self.source(*args)
         try:
-            self.compiled.compile(tuple(_numba.typeof(a) for a in args))
+            _register_helpers()
+            if self.compiled is None:
+                self.compiled = numba.njit(cache=True, nogil=True)(self.source)
+            self.compiled.compile(tuple(numba.typeof(a) for a in args))
         except Exception as exc:  # noqa: BLE001 - any failure to compile means Python
             self._fall_back(exc)
             return self.source(*args)
@@ -94,7 +106,7 @@ class _Kernel:
         LOG.warning('kernel %s.%s runs as Python (slower): numba could not compile it: '
                     '%s: %s', self.source.__module__, self.source.__qualname__,
                     type(exc).__name__, first[0] if first else '')
-        self.compiled = None
+        self.failed = True
         self.run = self.source
 
 
@@ -119,12 +131,18 @@ def kernel(*example: Any) -> Callable[[Callable], Callable]:
 def helper(source: Callable) -> Callable:
     """Decorator: a function kernels call. Called from Python it is the Python function
     itself; called from a compiled kernel it is compiled into it
-    (``numba.extending.register_jitable``)."""
-    numba = _load_numba()
-    if numba:
-        from numba.extending import register_jitable
-        register_jitable(source)
+    (``numba.extending.register_jitable``, done before the first kernel compiles)."""
+    _helpers.append(source)
     return source
+
+
+def _register_helpers() -> None:
+    global _registered
+    if _registered < len(_helpers):
+        from numba.extending import register_jitable
+        for source in _helpers[_registered:]:
+            register_jitable(source)
+        _registered = len(_helpers)
 
 
 def use_python(python: bool) -> None:
@@ -143,9 +161,7 @@ def compiled() -> bool:
 def warm() -> int:
     """Compile (or load from the cache) every kernel registered so far on its example
     arguments; returns how many run compiled."""
-    count = 0
     for state in _kernels:
-        if state.compiled is not None and state.example and not state.ready:
+        if state.example and not state.ready and not state.failed:
             state._first(*state.example)
-        count += state.ready
-    return count
+    return sum(state.ready for state in _kernels)
