@@ -18,9 +18,9 @@ compiled into the calling kernel when called from a compiled one.
 how the tests run each kernel both ways and compare (the source stays the reference).
 ``warm()`` compiles (or loads from the cache) every kernel with the example arguments it
 was registered with: a fork server calls it before forking, so its children share the
-compiled code and numba's compiler instead of each loading its own (measured: about 4
-MB of private memory per forked child against 57 MB for a child that imports numba
-itself; docs/throughput.md).
+compiled code and numba's compiler instead of each loading its own (measured: about 6
+MB more per forked agent in a 50-agent run, against 57 MB for a process that imports
+numba itself; docs/throughput.md).
 
 Why numba (issue 23): the brains apply small numeric rules to a handful of values many
 times a second per robot. numpy costs microseconds per call on arrays of two to ten
