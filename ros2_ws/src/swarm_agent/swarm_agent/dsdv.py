@@ -3,10 +3,12 @@
 - Neighbour discovery: every heartbeat heard makes its sender a neighbour (route of one
   hop with the sender's own sequence number); a neighbour silent for
   ``neighbour_timeout_s`` is a broken link.
-- Route table: destination -> (next hop, hops, destination sequence number). Own
-  sequence numbers are even and grow with every full dump; a broken link is
-  advertised with an infinite metric and the odd sequence number one above the last
-  known (3.1.2.3), so it overrides the stale route everywhere.
+- Route table: destination -> (next hop, hops, destination sequence number), held as
+  arrays shared by the routers of a process (``route_table``, where link addition and
+  the selection rules are compiled kernels). Own sequence numbers are even and grow
+  with every full dump; a broken link is advertised with an infinite metric and the
+  odd sequence number one above the last known (3.1.2.3), so it overrides the stale
+  route everywhere.
 - Restarts: the first own number comes from the boot time (``boot_sequence``), so a
   restarted agent's numbers are newer than those of its previous run, which its
   neighbours still hold, without storing anything (condition in ``boot_sequence``).
@@ -24,8 +26,9 @@
 - Flood relaying by the coverage condition of Wu and Dai on two-hop knowledge, with
   extra relays against loss (``flood_relay``).
 - One frame, many receivers: ``hear`` applies a frame to every router of a process that
-  heard it, checking and decoding it once (the headless evaluator, the composed
-  container); ``on_packet`` is the same for one.
+  heard it, checking and decoding it once and updating the route tables of all of
+  them in one call per store (the headless evaluator, the composed container);
+  ``on_packet`` is the same for one.
 
 Malformed, truncated or unknown frames are counted in ``stats`` and dropped.
 """
