@@ -59,6 +59,7 @@ import time
 import numpy as np
 import yaml
 
+from swarm_agent.address_grid import AddressGrid
 from swarm_agent.packet import Packet
 from swarm_common.jit import kernel
 
@@ -169,37 +170,14 @@ def _verified(key: bytes, source: int, destination: int, kind: int, sequence: in
     return Packet(source, destination, kind, sequence, ttl, payload[:-TRAILER_BYTES])
 
 
-class ReplayStore:
+class ReplayStore(AddressGrid):
     """The replay windows of every receiver of a process (the evaluator's brains, a
     composed container's agents; a ``FrameAuth`` alone has a store of its own): row p is
-    receiver p, column c the source ``column`` maps to, and ``cells[p, c]`` = (highest
-    counter accepted, bitmap of the ``WINDOW`` below it; 0: nothing heard yet)."""
+    receiver p, column c a source, and ``cells[p, c]`` = (highest counter accepted,
+    bitmap of the ``WINDOW`` below it; 0: nothing heard yet)."""
 
     def __init__(self) -> None:
-        self.column = np.full(1 << 16, -1, dtype=np.int64)
-        self.width = 0
-        self.cells = np.zeros((1, 8, 2), dtype=np.uint64)
-        self.height = 0
-
-    def add_row(self) -> int:
-        if self.height == len(self.cells):
-            self._grow(2 * self.height, self.cells.shape[1])
-        self.height += 1
-        return self.height - 1
-
-    def column_of(self, source: int) -> int:
-        c = int(self.column[source])
-        if c < 0:
-            if self.width == self.cells.shape[1]:
-                self._grow(len(self.cells), 2 * self.width)
-            c = self.column[source] = self.width
-            self.width += 1
-        return c
-
-    def _grow(self, height: int, width: int) -> None:
-        grown = np.zeros((height, width, 2), dtype=np.uint64)
-        grown[:self.cells.shape[0], :self.cells.shape[1]] = self.cells
-        self.cells = grown
+        super().__init__((0, 0), np.uint64)
 
 
 _VERDICTS = (None, 'auth_replay', 'auth_too_old')

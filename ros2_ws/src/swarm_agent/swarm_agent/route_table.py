@@ -25,13 +25,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from swarm_agent.address_grid import ADDRESSES, AddressGrid
 from swarm_agent.wire import Advert, INFINITE_HOPS
 from swarm_common.jit import kernel
 
 SEQUENCE_STEP = 2           # own sequence numbers grow by this at every full dump (even)
 SEQUENCE_MASK = 0xFFFFFFFF  # sequence numbers are 32-bit on the wire and wrap around
 HALF = 1 << 31
-ADDRESSES = 1 << 16
 SEQ, HOPS, NEXT, CHANGED = range(4)   # fields of a cell
 NONE = -1                              # hops of a cell without a route
 
@@ -57,56 +57,11 @@ def seq_newer(a: int, b: int) -> bool:
     return 0 < ((a - b) & SEQUENCE_MASK) < HALF
 
 
-class RouteStore:
+class RouteStore(AddressGrid):
     """The route tables of a process's routers; see the module docstring."""
 
     def __init__(self) -> None:
-        self.column = np.full(ADDRESSES, -1, dtype=np.int64)
-        self.ids = np.zeros(8, dtype=np.int64)      # column -> destination
-        self.width = 0                              # columns in use
-        self.cells = _empty(1, 8)
-        self.height = 0                             # rows in use
-
-    def add_row(self) -> int:
-        """A new, empty table; returns its row."""
-        if self.height == len(self.cells):
-            self._grow(2 * self.height, self.cells.shape[1])
-        self.height += 1
-        return self.height - 1
-
-    def columns(self, destinations: np.ndarray) -> np.ndarray:
-        """The columns of ``destinations`` (0..65535), new ones added."""
-        cols = self.column[destinations]
-        if (cols < 0).any():
-            for d in destinations[cols < 0].tolist():
-                if self.column[d] < 0:
-                    self._add_column(d)
-            cols = self.column[destinations]
-        return cols
-
-    def column_of(self, destination: int) -> int:
-        c = int(self.column[destination])
-        return c if c >= 0 else self._add_column(destination)
-
-    def _add_column(self, destination: int) -> int:
-        if self.width == len(self.ids):
-            self.ids = np.concatenate([self.ids, np.zeros_like(self.ids)])
-            self._grow(len(self.cells), 2 * self.width)
-        c = self.width
-        self.column[destination], self.ids[c] = c, destination
-        self.width += 1
-        return c
-
-    def _grow(self, height: int, width: int) -> None:
-        grown = _empty(height, width)
-        grown[:self.cells.shape[0], :self.cells.shape[1]] = self.cells
-        self.cells = grown
-
-
-def _empty(height: int, width: int) -> np.ndarray:
-    cells = np.zeros((height, width, 4), dtype=np.int64)
-    cells[:, :, HOPS] = NONE
-    return cells
+        super().__init__((0, NONE, 0, 0), np.int64)
 
 
 class RouteTable:
@@ -120,31 +75,28 @@ class RouteTable:
         """This table's cells of the columns in use (a view)."""
         return self.store.cells[self.row, :self.store.width]
 
-    def __len__(self) -> int:
-        return int(np.count_nonzero(self._cells()[:, HOPS] != NONE))
-
-    def get(self, destination: int) -> RouteEntry | None:
-        """The route to ``destination`` (a copy), or None."""
-        c = self.store.column[destination] if 0 <= destination < ADDRESSES else -1
-        if c < 0 or self.store.cells[self.row, c, HOPS] == NONE:
-            return None
-        seq, hops, nxt, changed = self.store.cells[self.row, c].tolist()
-        return RouteEntry(destination, nxt, hops, seq, bool(changed))
-
     def set(self, entry: RouteEntry) -> None:
         """Write one route."""
         c = self.store.column_of(entry.destination)
         self.store.cells[self.row, c] = (entry.sequence_number & SEQUENCE_MASK,
                                          entry.hop_count, entry.next_hop, int(entry.changed))
 
+    def _by_destination(self, changed_only: bool = False) -> tuple[list[int], np.ndarray]:
+        """The destinations with a route (those changed only, if asked) in order, and
+        their cells."""
+        cells = self._cells()
+        keep = cells[:, HOPS] != NONE
+        if changed_only:
+            keep &= cells[:, CHANGED] != 0
+        cols = np.flatnonzero(keep)
+        cols = cols[np.argsort(self.store.ids[cols])]
+        return self.store.ids[cols].tolist(), cells[cols]
+
     def entries(self) -> list[RouteEntry]:
         """Every route, sorted by destination (copies)."""
-        cells = self._cells()
-        cols = np.flatnonzero(cells[:, HOPS] != NONE)
-        ids = self.store.ids[cols]
-        order = np.argsort(ids)
-        return [RouteEntry(d, nxt, hops, seq, bool(changed)) for d, (seq, hops, nxt, changed)
-                in zip(ids[order].tolist(), cells[cols[order]].tolist())]
+        ids, cells = self._by_destination()
+        return [RouteEntry(d, nxt, hops, seq, bool(changed))
+                for d, (seq, hops, nxt, changed) in zip(ids, cells.tolist())]
 
     def next_hop(self, destination: int) -> int | None:
         c = self.store.column[destination] if 0 <= destination < ADDRESSES else -1
@@ -167,15 +119,9 @@ class RouteTable:
     def adverts(self, changed_only: bool = False) -> list[Advert]:
         """The routes as adverts (destination, hops, sequence number), sorted by
         destination: all of them (a full dump) or those changed (an incremental one)."""
-        cells = self._cells()
-        keep = cells[:, HOPS] != NONE
-        if changed_only:
-            keep &= cells[:, CHANGED] != 0
-        cols = np.flatnonzero(keep)
-        cols = cols[np.argsort(self.store.ids[cols])]
-        return list(map(Advert._make, zip(self.store.ids[cols].tolist(),
-                                          cells[cols, HOPS].tolist(),
-                                          cells[cols, SEQ].tolist())))
+        ids, cells = self._by_destination(changed_only)
+        return list(map(Advert._make, zip(ids, cells[:, HOPS].tolist(),
+                                          cells[:, SEQ].tolist())))
 
     def break_link(self, neighbour: int) -> bool:
         """Fig. 3.9: every finite route through ``neighbour`` gets hops = inf and the next
@@ -223,7 +169,7 @@ def merge(tables: Sequence[RouteTable], owns: Sequence[int], sequences: Sequence
     return own_seq.tolist(), dirty.tolist(), damped.tolist()
 
 
-_CELLS = _empty(2, 4)
+_CELLS = RouteStore().cells
 _ROWS = np.zeros(1, dtype=np.int64)
 
 
