@@ -21,7 +21,7 @@ ADDRESSES = 1 << 16
 class AddressGrid:
     """Receivers by radio addresses, each cell a record initialised to ``empty``."""
 
-    def __init__(self, empty: Sequence[int], dtype: type) -> None:
+    def __init__(self, empty: Sequence[float], dtype: type) -> None:
         self._empty = np.array(empty, dtype=dtype)
         self.column = np.full(ADDRESSES, -1, dtype=np.int64)
         self.ids = np.zeros(8, dtype=np.int64)      # column -> address

@@ -77,6 +77,7 @@ from swarm_common.shapes import Shape
 from swarm_mission.contour import sample_boundary
 
 LOG = logging.getLogger(__name__)
+_HEARTBEAT = int(Kind.HEARTBEAT)   # compared as int (an Enum comparison per frame adds up)
 
 def _next_tick(due: float, t: float, period: float) -> float:
     """The next due time after ``t`` on the grid ``due + k * period`` (no catch-up bursts)."""
@@ -278,17 +279,29 @@ class AgentBrain:
         """What the router made of a frame heard at ``t``: frames to send, and payloads
         for this agent (neighbours' heartbeat information, cost rows)."""
         self._outbox.extend(packets)
+        if delivered:
+            AgentBrain.take_delivered(t, (self,), delivered)
+
+    @staticmethod
+    def take_delivered(t: float, brains: Sequence[AgentBrain],
+                       delivered: Sequence[Delivered]) -> None:
+        """Payloads delivered alike to each of ``brains`` at ``t`` (a heartbeat heard by
+        many: ``reception.receive``), each decoded once for all of them."""
         for item in delivered:
             try:
-                if item.kind == Kind.HEARTBEAT:
-                    self.neighbours[item.origin] = _neighbour(
-                        NeighbourInfo.decode(item.payload), t)
+                if item.kind == _HEARTBEAT:
+                    neighbour = _neighbour(NeighbourInfo.decode(item.payload), t)
+                    for brain in brains:
+                        brain.neighbours[item.origin] = neighbour
                 elif message_kind(item.payload) == MSG_COST_ROW:
-                    self._store_row(CostRow.decode(item.payload))
+                    row = CostRow.decode(item.payload)
+                    for brain in brains:
+                        brain._store_row(row)
             except MeshMessageError as exc:
-                self.stats['bad_mesh_messages'] += 1
-                LOG.debug('agent %d dropped a mesh message from %d: %s',
-                          self.config.agent_id, item.origin, exc)
+                for brain in brains:
+                    brain.stats['bad_mesh_messages'] += 1
+                    LOG.debug('agent %d dropped a mesh message from %d: %s',
+                              brain.config.agent_id, item.origin, exc)
 
     # ------------------------------------------------------------------ stepping
     def step(self, t: float) -> BrainOutput:

@@ -43,7 +43,8 @@ import math
 
 import numpy as np
 
-from swarm_agent import flood_relay, route_table, wire
+from swarm_agent import flood_relay, neighbour_table, route_table, wire
+from swarm_agent.neighbour_table import NeighbourTable
 from swarm_agent.packet import BROADCAST, Kind, Packet
 from swarm_agent.route_table import (
     RouteEntry,
@@ -138,14 +139,15 @@ class DsdvRouter:
         self.config = config or DsdvConfig()
         self.sequence = boot_sequence(boot_time_s)  # own sequence number (even)
         self.route_table = RouteTable(store)
-        self.heard: dict[int, float] = {}       # neighbour -> last time heard
+        # Neighbours heard, with their heartbeat counts: the store's, row for row.
+        self.neighbour_table = NeighbourTable(self.route_table.store.neighbours,
+                                              self.route_table.row)
         self.two_hop: dict[int, set[int]] = {}  # neighbour -> its advertised neighbours
-        # neighbour -> [last heartbeat time, heartbeats heard, heartbeats sent] (decayed)
-        self._beats: dict[int, list[float]] = {}
         self._copies = self.config.flood_extra_copies  # k, renewed at every heartbeat sent
         # Flood relay decisions depend only on the two-hop view: kept until it changes.
         self._silent_after: dict[int, bool] = {}  # previous hop -> stay silent?
         self._higher: set[int] | None = None
+        self._view: set[int] | None = None        # the neighbours, kept until they change
         self._info: bytes | Callable[[], bytes] = b''
         self._tx_seq = 0
         self._flood_id = 0
@@ -197,9 +199,19 @@ class DsdvRouter:
         """The route table, sorted by destination (own entry excluded; copies)."""
         return self.route_table.entries()
 
+    @property
+    def heard(self) -> dict[int, float]:
+        """Neighbour -> when last heard, by address (a copy)."""
+        return self.neighbour_table.heard()
+
     def neighbours(self) -> set[int]:
-        """Direct neighbours currently heard."""
-        return set(self.heard)
+        """Direct neighbours currently heard (a copy)."""
+        return set(self._neighbours())
+
+    def _neighbours(self) -> set[int]:
+        if self._view is None:
+            self._view = self.neighbour_table.ids()
+        return self._view
 
     def reachable(self) -> set[int]:
         """Destinations with a finite route."""
@@ -219,11 +231,10 @@ class DsdvRouter:
             return []
         out: list[Packet] = []
         if t > self._next_expiry:
-            timeout = self.config.neighbour_timeout_s
-            for neighbour, last in list(self.heard.items()):
-                if t - last > timeout:
-                    self._break_link(neighbour)
-            self._next_expiry = min(self.heard.values(), default=math.inf) + timeout
+            gone, self._next_expiry = self.neighbour_table.silent(
+                t, self.config.neighbour_timeout_s)
+            for neighbour in gone:
+                self._break_link(neighbour)
         if t >= self._next_heartbeat:
             self._next_heartbeat = t + self.config.heartbeat_period_s
             self._copies = self._extra_copies()
@@ -257,9 +268,8 @@ class DsdvRouter:
 
     def _break_link(self, neighbour: int) -> None:
         """Fig. 3.9: every route through the neighbour gets hops = inf and an odd sequence."""
-        self.heard.pop(neighbour, None)
+        self.neighbour_table.forget(neighbour)
         self.two_hop.pop(neighbour, None)
-        self._beats.pop(neighbour, None)
         self._view_changed()
         if self.route_table.break_link(neighbour):
             self._dirty = True
@@ -270,38 +280,21 @@ class DsdvRouter:
         """Handle one frame heard on the radio. The result is read-only (may be shared)."""
         return hear(t, packet, (self,))[0]
 
-    def _count_beat(self, t: float, neighbour: int) -> None:
-        """The time since the neighbour's last heartbeat heard tells how many it sent."""
-        beats = self._beats.get(neighbour)
-        if beats is None:
-            self._beats[neighbour] = [t, 1.0, 1.0]
-            return
-        sent = max(1.0, round((t - beats[0]) / self.config.heartbeat_period_s))
-        keep = self.config.loss_memory ** sent
-        beats[0] = t
-        beats[1] = beats[1] * keep + 1.0
-        beats[2] = beats[2] * keep + sent
-
     def link_loss(self) -> float:
         """Share of the neighbours' heartbeats this node did not hear (recent, decayed)."""
-        heard = sent = 0.0
-        for _, h, s in self._beats.values():
-            heard += h
-            sent += s
-        return 1.0 - heard / sent if sent > 0.0 else 0.0
+        return self.neighbour_table.loss()
 
     def _extra_copies(self) -> float:
         """k of ``flood_relay`` for the loss seen now."""
         return flood_relay.extra_copies(self.config.flood_extra_copies, self.link_loss(),
                                         self.config.flood_miss_target)
 
-    def _heard(self, t: float, neighbour: int) -> None:
-        """A neighbour heard directly is a neighbour now; its one-hop route is the route
-        table's (``route_table.heard``, applied by ``hear`` to every receiver at once)."""
-        if neighbour not in self.heard:
-            self._view_changed()
-        self.heard[neighbour] = t
-        if self._next_expiry == math.inf:
+    def _new_neighbour(self, t: float) -> None:
+        """A neighbour heard for the first time since its link last broke (its time and
+        counts are the neighbour table's, its one-hop route the route table's: both
+        applied by ``hear`` to every receiver at once)."""
+        self._view_changed()
+        if self._next_expiry == math.inf:   # it is the only neighbour
             self._next_expiry = t + self.config.neighbour_timeout_s
             self._wake = min(self._wake, self._next_expiry)
 
@@ -318,19 +311,21 @@ class DsdvRouter:
     def _view_changed(self) -> None:
         self._silent_after.clear()
         self._higher = None
+        self._view = None
 
     def _should_relay(self, previous_hop: int, origin: int, flood_id: int) -> bool:
         """Relay unless the coverage condition (``flood_relay``) lets this node be silent."""
         silent = self._silent_after.get(previous_hop)
         if silent is None:
+            view = self._neighbours()
             if self._higher is None:   # neighbours with a higher id and a known neighbourhood
-                self._higher = {z for z in self.heard if z > self.id and z in self.two_hop}
+                self._higher = {z for z in view if z > self.id and z in self.two_hop}
             silent = self._silent_after[previous_hop] = flood_relay.covered(
-                previous_hop, self.heard.keys(), self.two_hop, self._higher)
+                previous_hop, view, self.two_hop, self._higher)
         if not silent:
             return True
-        return flood_relay.relays_anyway(self._copies, len(self.heard), flood_id, origin,
-                                         self.id)
+        return flood_relay.relays_anyway(self._copies, len(self._neighbours()), flood_id,
+                                         origin, self.id)
 
     # ------------------------------------------------------------------ data plane
     def send(self, t: float, destination: int, payload: bytes) -> list[Packet]:
@@ -447,17 +442,17 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
         elif kind is _HEARTBEAT:
             seq, info = wire.decode_heartbeat(packet.payload)
             heartbeat = RouterOutput(delivered=[Delivered(source, Kind.HEARTBEAT, info)])
-            for i, r in taking:
-                r._count_beat(t, source)
-                r._heard(t, source)
+            receivers = [r for _, r in taking]
+            _neighbour_heard(receivers, t, source, True)
+            for i, _ in taking:
                 outs[i] = heartbeat
-            _link_added([r for _, r in taking], source, seq)
+            _link_added(receivers, source, seq)
         elif kind is _FULL or kind is _INCREMENTAL:
             seq, adverts = wire.decode_adverts(packet.payload)
             ones, others = _neighbour_set(source, adverts)
             receivers = [r for _, r in taking]
+            _neighbour_heard(receivers, t, source, False)
             for r in receivers:
-                r._heard(t, source)
                 r._learn_neighbourhood(source, ones, others)
             _link_added(receivers, source, None, seq)
             _merged(receivers, source, _advert_rows(adverts))
@@ -498,6 +493,29 @@ def _by_store(routers: list[DsdvRouter]) -> list[list[DsdvRouter]]:
     for r in routers:
         groups.setdefault(id(r.route_table.store), []).append(r)
     return list(groups.values())
+
+
+def _neighbour_heard(routers: list[DsdvRouter], t: float, neighbour: int, beat: bool) -> None:
+    """``neighbour`` heard directly at every receiver, by a heartbeat (``beat``) or a
+    dump: ``neighbour_table.heard``, one call for receivers of one store and timing."""
+    for group in _by_store(routers):
+        config = group[0].config
+        period, memory = config.heartbeat_period_s, config.loss_memory
+        if not all(r.config.heartbeat_period_s == period and r.config.loss_memory == memory
+                   for r in group):   # configured apart (a test): one call each
+            for r in group:
+                _neighbour_heard_by(r, [r], t, neighbour, beat)
+            continue
+        _neighbour_heard_by(group[0], group, t, neighbour, beat)
+
+
+def _neighbour_heard_by(first: DsdvRouter, group: list[DsdvRouter], t: float, neighbour: int,
+                        beat: bool) -> None:
+    new = neighbour_table.heard([r.neighbour_table for r in group], neighbour, t, beat,
+                                first.config.heartbeat_period_s, first.config.loss_memory)
+    if new.any():
+        for i in np.flatnonzero(new).tolist():
+            group[i]._new_neighbour(t)
 
 
 def _link_added(routers: list[DsdvRouter], neighbour: int, seq: int | None,

@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from swarm_agent.dsdv import hear
+from swarm_agent.dsdv import hear, RouterOutput
 from swarm_agent.frame_auth import open_all
 from swarm_agent.packet import Packet
 
@@ -49,6 +49,18 @@ def receive(t: float, packet: Packet, brains: Sequence[AgentBrain]) -> None:
 
 def _route(t: float, frame: Packet, brains: Sequence[AgentBrain]) -> None:
     outs = hear(t, frame, [brain.router for brain in brains])
+    # A router output shared by several receivers (a heartbeat's) holds payloads alike
+    # for all of them: consumed once for the run of brains that got it.
+    shared: RouterOutput | None = None
+    run: list[AgentBrain] = []
     for brain, out in zip(brains, outs):
-        if out.packets or out.delivered:
+        if out.packets:
             brain.take_routed(t, out.packets, out.delivered)
+        elif out.delivered:
+            if out is not shared:
+                if run:
+                    run[0].take_delivered(t, run, shared.delivered)
+                shared, run = out, []
+            run.append(brain)
+    if run:
+        run[0].take_delivered(t, run, shared.delivered)

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarm_agent.address_grid import ADDRESSES, AddressGrid
+from swarm_agent.neighbour_table import NeighbourGrid
 from swarm_agent.wire import Advert, INFINITE_HOPS
 from swarm_common.jit import kernel
 
@@ -58,10 +59,17 @@ def seq_newer(a: int, b: int) -> bool:
 
 
 class RouteStore(AddressGrid):
-    """The route tables of a process's routers; see the module docstring."""
+    """The route tables of a process's routers (see the module docstring) and their
+    neighbour tables (``neighbours``, ``neighbour_table``), row for row."""
 
     def __init__(self) -> None:
         super().__init__((0, NONE, 0, 0), np.int64)
+        self.neighbours = NeighbourGrid()
+
+    def add_row(self) -> int:
+        row = super().add_row()
+        self.neighbours.add_row()
+        return row
 
 
 class RouteTable:
