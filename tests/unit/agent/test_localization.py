@@ -17,6 +17,8 @@ from swarm_agent.trilateration import (
     trilaterate,
 )
 
+# The filter's prediction and update are kernels (swarm_agent.kalman): compiled and as source.
+pytestmark = pytest.mark.usefixtures('kernels')
 TRIANGLE = np.array([[0.0, 0.0], [20.0, 0.0], [5.0, 18.0]])
 PENTAGON = 12.0 * np.array([[np.cos(a), np.sin(a)]
                             for a in np.linspace(0, 2 * np.pi, 5, endpoint=False)])
@@ -636,3 +638,29 @@ def test_a_restarted_agent_learns_the_velocity_its_robot_drives_at():
 
     assert error_after(lambda loc: loc.restarted(12.0)) < 0.2
     assert error_after(lambda loc: loc.widen(12.0)) > 1.0
+
+
+def test_filter_kernels_compiled_agree_with_their_source():
+    """The prediction and the Joseph-form update (``kalman._propagate``, ``_update``)
+    compiled give the numbers of their Python source to rounding (the compiled matrix
+    products add in another order), with and without consider parameters."""
+    from swarm_agent.kalman import _propagate, _update
+    from swarm_common import jit
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        a = rng.normal(size=(6, 6))
+        p = a @ a.T + np.eye(6)
+        x, cross = rng.normal(size=6), rng.normal(size=(6, 2 * int(rng.integers(0, 4))))
+        h = rng.normal(size=(int(rng.integers(1, 4)), 6))
+        f = np.eye(6)
+        f[:2, 2:4] = 0.02 * np.eye(2)
+        for kernel, args in ((_update, (x, p, cross, h, rng.normal(size=len(h)),
+                                        0.3 * np.eye(len(h)))),
+                             (_propagate, (f, rng.normal(size=(6, 2)), 1e-4 * np.eye(6), x, p,
+                                           cross, rng.normal(size=2), 0.99))):
+            jit.use_python(True)
+            source = kernel(*args)
+            jit.use_python(False)
+            for got, want in zip(kernel(*args), source):
+                assert got.shape == want.shape
+                np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)

@@ -13,6 +13,9 @@ from swarm_agent.anchors import AnchorRange, consider_terms, range_covariance, u
 from swarm_agent.kalman import KalmanFilter
 from swarm_agent.localization import LocalizationConfig, Localizer
 
+# The filter's prediction and update are kernels (swarm_agent.kalman): compiled and as source.
+pytestmark = pytest.mark.usefixtures('kernels')
+
 BEACONS = np.array([[12.0, 2.0], [10.0, -6.0], [14.0, 8.0]])   # all east of the agent
 TOA = 0.3          # m, white range noise
 OWN = 0.5          # m per axis, each beacon's own position error

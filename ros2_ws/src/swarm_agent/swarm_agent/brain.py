@@ -233,7 +233,7 @@ class AgentBrain:
     def on_imu(self, t: float, accel: np.ndarray) -> None:
         """Accelerometer sample in the map frame (m/s^2): Kalman prediction (eq. 3.30)."""
         accel = np.asarray(accel, dtype=float)
-        if accel.shape != (2,) or not np.all(np.isfinite(accel)):
+        if accel.shape != (2,) or not (math.isfinite(accel[0]) and math.isfinite(accel[1])):
             return
         self.localizer.predict(t, accel)
         if self._stall.imu(t, accel, self.localizer.kf.bias):

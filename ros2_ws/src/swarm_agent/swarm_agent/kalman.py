@@ -32,6 +32,8 @@ import math
 
 import numpy as np
 
+from swarm_common.jit import kernel
+
 
 class KalmanFilter:
     """Position, velocity (and accelerometer bias) filter with the IMU as input."""
@@ -56,6 +58,7 @@ class KalmanFilter:
         self.bias_walk = bias_walk_std ** 2  # (m/s^2)^2 per second
         self._h = np.zeros((2, n))
         self._h[0, 0] = self._h[1, 1] = 1.0
+        self._h_velocity = np.roll(self._h, 2, axis=1)   # H = [0 I 0]
         self._dt: float | None = None  # the IMU period is fixed: F and Q built once per dt
         self.consider_time_s = consider_time_s
         self.consider_keys: list[Hashable] = []      # two consider parameters each
@@ -88,11 +91,9 @@ class KalmanFilter:
             return
         if self._dt is None or abs(dt - self._dt) > 1e-9:
             self._model(dt)
-        f = self._f
-        self.x = f @ self.x + self._g @ np.asarray(accel, float)
-        self.P = f @ self.P @ f.T + self._q
-        if self.cross.size:
-            self.cross = (f @ self.cross) * self._decay
+        self.x, self.P, self.cross = _propagate(self._f, self._g, self._q, self.x, self.P,
+                                                self.cross, np.asarray(accel, float),
+                                                self._decay)
 
     def innovation_distance(self, z, R) -> float:
         """Squared Mahalanobis distance of a position fix from the prediction.
@@ -106,14 +107,9 @@ class KalmanFilter:
 
     def update(self, h: np.ndarray, z, R) -> None:
         """Linear measurement z = H x + v, v ~ N(0, R) (eqs. 3.34-3.44, Joseph form)."""
-        h = np.atleast_2d(np.asarray(h, float))
-        r = np.atleast_2d(np.asarray(R, float))
-        s = h @ self.P @ h.T + r
-        k = self.P @ h.T @ np.linalg.inv(s)
-        self.x = self.x + k @ (np.atleast_1d(np.asarray(z, float)) - h @ self.x)
-        ikh = np.eye(len(self.x)) - k @ h
-        self.P = ikh @ self.P @ ikh.T + k @ r @ k.T
-        self.cross = ikh @ self.cross   # z does not depend on the consider parameters
+        self.x, self.P, self.cross = _update(
+            self.x, self.P, self.cross, np.atleast_2d(np.asarray(h, float)),
+            np.atleast_1d(np.asarray(z, float)), np.atleast_2d(np.asarray(R, float)))
 
     def update_position(self, z, R) -> None:
         """Measurement update with a position fix z (2,) of covariance R."""
@@ -245,7 +241,39 @@ class KalmanFilter:
 
     def update_velocity(self, z, R) -> None:
         """Measurement update with a velocity z (2,) of covariance R (H = [0 I 0])."""
-        self.update(np.roll(self._h, 2, axis=1), z, R)
+        self.update(self._h_velocity, z, R)
+
+
+_N, _M = np.zeros(6), np.zeros((6, 6))
+
+
+@kernel(_M, np.zeros((6, 2)), _M, _N, _M, np.zeros((6, 2)), np.zeros(2), 1.0)
+def _propagate(f: np.ndarray, g: np.ndarray, q: np.ndarray, x: np.ndarray, p: np.ndarray,
+               cross: np.ndarray, accel: np.ndarray, decay: float) -> tuple[
+                   np.ndarray, np.ndarray, np.ndarray]:
+    """The prediction (eqs. 3.30-3.33): x, P and the consider covariance ``cross``
+    propagated by F, G, Q with the measured acceleration (``KalmanFilter.predict``)."""
+    x = f @ x + g @ accel
+    p = f @ p @ f.T + q
+    if cross.shape[1] > 0:
+        cross = (f @ cross) * decay
+    return x, p, cross
+
+
+@kernel(_N, _M, np.zeros((6, 2)), np.zeros((2, 6)), np.zeros(2), np.eye(2))
+def _update(x: np.ndarray, p: np.ndarray, cross: np.ndarray, h: np.ndarray, z: np.ndarray,
+            r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Linear measurement z = H x + v, v ~ N(0, R) (eqs. 3.34-3.44, Joseph form):
+    x, P and ``cross`` updated (``KalmanFilter.update``); z does not depend on the
+    consider parameters, so their covariance with the state only shrinks by (I - KH)."""
+    s = h @ p @ h.T + r
+    k = p @ h.T @ np.linalg.inv(s)
+    x = x + k @ (z - h @ x)
+    ikh = np.eye(x.shape[0]) - k @ h
+    p = ikh @ p @ ikh.T + k @ r @ k.T
+    if cross.shape[1] > 0:
+        cross = ikh @ cross
+    return x, p, cross
 
 
 # (anchor keys, each range's index into them or -1, the anchors' error covariance)
