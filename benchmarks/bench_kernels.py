@@ -53,11 +53,13 @@ def cases(receivers: int) -> dict[str, tuple[str, object]]:
     sequences = [10] * receivers
     stale = [12] * receivers
 
+    rows = np.array([table.row for table in tables], dtype=np.int64)
+
     def dump() -> None:
-        route_table.merge(tables, owns, sequences, stale, 7, adverts)
+        route_table.merge(store, rows, owns, sequences, stale, 7, adverts)
 
     def heartbeat() -> None:
-        route_table.heard(tables, 7, 1000, 0)
+        route_table.heard(store, rows, 7, 1000, 0)
 
     key = Keyring(((1, bytes(range(32))),), seal_id=1)
     sender = FrameAuth(key, lambda: 1.8e9)

@@ -30,10 +30,15 @@ def _tables(n: int) -> list[NeighbourTable]:
     return [NeighbourTable(grid, grid.add_row()) for _ in range(n)]
 
 
+def _heard(tables: list[NeighbourTable], neighbour: int, t: float, beat: bool) -> np.ndarray:
+    rows = np.array([table.row for table in tables], dtype=np.int64)
+    return neighbour_table.heard(tables[0].grid, rows, neighbour, t, beat, PERIOD, MEMORY)
+
+
 def test_a_missed_heartbeat_counts_as_sent_and_not_heard():
     (table,) = _tables(1)
     for t in (0.0, 0.5, 1.5):   # the heartbeat of 1.0 s was lost
-        neighbour_table.heard([table], 7, t, True, PERIOD, MEMORY)
+        _heard([table], 7, t, True)
     heard = (1.0 * MEMORY + 1.0) * MEMORY ** 2 + 1.0
     sent = (1.0 * MEMORY + 1.0) * MEMORY ** 2 + 2.0
     assert table.loss() == pytest.approx(1.0 - heard / sent, rel=1e-12)
@@ -51,10 +56,8 @@ def test_many_receivers_in_one_call_equal_one_at_a_time():
         hearing = [i for i in range(5) if rng.random() < 0.6]
         if not hearing:
             continue
-        new = neighbour_table.heard([together[i] for i in hearing], neighbour, t, beat,
-                                    PERIOD, MEMORY)
-        one = [bool(neighbour_table.heard([alone[i]], neighbour, t, beat, PERIOD,
-                                          MEMORY)[0]) for i in hearing]
+        new = _heard([together[i] for i in hearing], neighbour, t, beat)
+        one = [bool(_heard([alone[i]], neighbour, t, beat)[0]) for i in hearing]
         assert new.tolist() == one
     for a, b in zip(together, alone):
         assert a.heard() == b.heard() and a.loss() == b.loss()
@@ -62,9 +65,9 @@ def test_many_receivers_in_one_call_equal_one_at_a_time():
 
 def test_new_neighbours_silence_and_forgetting():
     a, b = _tables(2)
-    assert neighbour_table.heard([a, b], 9, 1.0, False, PERIOD, MEMORY).tolist() == [True, True]
-    assert neighbour_table.heard([a], 9, 1.2, True, PERIOD, MEMORY).tolist() == [False]
-    neighbour_table.heard([a], 4, 2.0, True, PERIOD, MEMORY)
+    assert _heard([a, b], 9, 1.0, False).tolist() == [True, True]
+    assert _heard([a], 9, 1.2, True).tolist() == [False]
+    _heard([a], 4, 2.0, True)
     assert a.ids() == {4, 9} and b.ids() == {9}
     gone, next_silence = a.silent(3.3, 2.0)   # 9 last heard at 1.2: silent for 2.1 s
     assert gone == [9] and next_silence == 4.0
@@ -74,7 +77,7 @@ def test_new_neighbours_silence_and_forgetting():
     a.forget(4)
     assert a.silent(10.0, 2.0) == ([], math.inf) and a.loss() == 0.0
     # A forgotten neighbour heard again starts its counts afresh.
-    assert neighbour_table.heard([a], 9, 11.0, True, PERIOD, MEMORY).tolist() == [True]
+    assert _heard([a], 9, 11.0, True).tolist() == [True]
     assert a.loss() == 0.0
 
 

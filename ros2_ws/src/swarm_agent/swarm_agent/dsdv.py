@@ -40,6 +40,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 import logging
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -442,20 +443,20 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
         elif kind is _HEARTBEAT:
             seq, info = wire.decode_heartbeat(packet.payload)
             heartbeat = RouterOutput(delivered=[Delivered(source, Kind.HEARTBEAT, info)])
-            receivers = [r for _, r in taking]
-            _neighbour_heard(receivers, t, source, True)
+            groups = _groups([r for _, r in taking])
+            _neighbour_heard(groups, t, source, True)
             for i, _ in taking:
                 outs[i] = heartbeat
-            _link_added(receivers, source, seq)
+            _link_added(groups, source, seq)
         elif kind is _FULL or kind is _INCREMENTAL:
             seq, adverts = wire.decode_adverts(packet.payload)
             ones, others = _neighbour_set(source, adverts)
-            receivers = [r for _, r in taking]
-            _neighbour_heard(receivers, t, source, False)
-            for r in receivers:
+            groups = _groups([r for _, r in taking])
+            _neighbour_heard(groups, t, source, False)
+            for _, r in taking:
                 r._learn_neighbourhood(source, ones, others)
-            _link_added(receivers, source, None, seq)
-            _merged(receivers, source, _advert_rows(adverts))
+            _link_added(groups, source, None, seq)
+            _merged(groups, source, _advert_rows(adverts))
         elif kind is _DATA:
             for i, r in taking:
                 outs[i] = _per_router(r, t, packet, kind, r._on_data)
@@ -483,59 +484,66 @@ def _count_all(routers: Sequence[DsdvRouter], key: str) -> None:
         router._count(key)
 
 
-def _by_store(routers: list[DsdvRouter]) -> list[list[DsdvRouter]]:
-    """``routers`` grouped by the store of their route tables (one group in a process
-    whose routers share a store, as the evaluator's and a composed container's do)."""
-    store = routers[0].route_table.store
-    if all(r.route_table.store is store for r in routers):
-        return [routers]
-    groups: dict[int, list[DsdvRouter]] = {}
-    for r in routers:
-        groups.setdefault(id(r.route_table.store), []).append(r)
-    return list(groups.values())
+class _Group(NamedTuple):
+    """Receivers of one frame that share a store and the heartbeat timing (the kernels'
+    scalars), with their rows in it."""
+
+    routers: list[DsdvRouter]
+    store: RouteStore
+    rows: np.ndarray
 
 
-def _neighbour_heard(routers: list[DsdvRouter], t: float, neighbour: int, beat: bool) -> None:
-    """``neighbour`` heard directly at every receiver, by a heartbeat (``beat``) or a
-    dump: ``neighbour_table.heard``, one call for receivers of one store and timing."""
-    for group in _by_store(routers):
-        config = group[0].config
-        period, memory = config.heartbeat_period_s, config.loss_memory
-        if not all(r.config.heartbeat_period_s == period and r.config.loss_memory == memory
-                   for r in group):   # configured apart (a test): one call each
-            for r in group:
-                _neighbour_heard_by(r, [r], t, neighbour, beat)
-            continue
-        _neighbour_heard_by(group[0], group, t, neighbour, beat)
+def _groups(routers: list[DsdvRouter]) -> list[_Group]:
+    """``routers`` grouped for the kernels: one group in a process whose routers share a
+    store and their timing (the evaluator's, a composed container's), once per frame."""
+    first = routers[0]
+    store, config = first.route_table.store, first.config
+    period, memory = config.heartbeat_period_s, config.loss_memory
+    if all(r.route_table.store is store and (r.config is config or (
+            r.config.heartbeat_period_s == period and r.config.loss_memory == memory))
+           for r in routers):
+        split = [routers]
+    else:
+        keyed: dict[tuple[int, float, float], list[DsdvRouter]] = {}
+        for r in routers:
+            keyed.setdefault((id(r.route_table.store), r.config.heartbeat_period_s,
+                              r.config.loss_memory), []).append(r)
+        split = list(keyed.values())
+    return [_Group(group, group[0].route_table.store,
+                   np.array([r.route_table.row for r in group], dtype=np.int64))
+            for group in split]
 
 
-def _neighbour_heard_by(first: DsdvRouter, group: list[DsdvRouter], t: float, neighbour: int,
-                        beat: bool) -> None:
-    new = neighbour_table.heard([r.neighbour_table for r in group], neighbour, t, beat,
-                                first.config.heartbeat_period_s, first.config.loss_memory)
-    if new.any():
-        for i in np.flatnonzero(new).tolist():
-            group[i]._new_neighbour(t)
+def _neighbour_heard(groups: list[_Group], t: float, neighbour: int, beat: bool) -> None:
+    """``neighbour`` heard directly by every receiver, in a heartbeat (``beat``) or a
+    dump: ``neighbour_table.heard``."""
+    for routers, store, rows in groups:
+        config = routers[0].config
+        new = neighbour_table.heard(store.neighbours, rows, neighbour, t, beat,
+                                    config.heartbeat_period_s, config.loss_memory)
+        if new.any():
+            for i in np.flatnonzero(new).tolist():
+                routers[i]._new_neighbour(t)
 
 
-def _link_added(routers: list[DsdvRouter], neighbour: int, seq: int | None,
+def _link_added(groups: list[_Group], neighbour: int, seq: int | None,
                 dump_seq: int = 0) -> None:
     """Link addition (Fig. 3.8) at every receiver: ``route_table.heard``."""
-    for group in _by_store(routers):
-        changed = route_table.heard([r.route_table for r in group], neighbour, seq, dump_seq)
-        for r, c in zip(group, changed):
-            if c:
-                r._dirty = True
+    for routers, store, rows in groups:
+        changed = route_table.heard(store, rows, neighbour, seq, dump_seq)
+        if changed.any():
+            for i in np.flatnonzero(changed).tolist():
+                routers[i]._dirty = True
 
 
-def _merged(routers: list[DsdvRouter], neighbour: int, adverts: np.ndarray) -> None:
+def _merged(groups: list[_Group], neighbour: int, adverts: np.ndarray) -> None:
     """The selection rules (3.1.2.1) at every receiver: ``route_table.merge``."""
-    for group in _by_store(routers):
+    for routers, store, rows in groups:
         sequences, changed, damped = route_table.merge(
-            [r.route_table for r in group], [r.id for r in group],
-            [r.sequence for r in group],
-            [r.config.stale_generations * SEQUENCE_STEP for r in group], neighbour, adverts)
-        for r, sequence, c, n in zip(group, sequences, changed, damped):
+            store, rows, [r.id for r in routers], [r.sequence for r in routers],
+            [r.config.stale_generations * SEQUENCE_STEP for r in routers], neighbour,
+            adverts)
+        for r, sequence, c, n in zip(routers, sequences, changed, damped):
             r.sequence = sequence
             if c:
                 r._dirty = True

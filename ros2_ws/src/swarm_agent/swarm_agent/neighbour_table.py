@@ -19,7 +19,6 @@ the 50-agent trial; per receiver in Python it was 3 us a delivery, 1.1 million a
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 import math
 
 import numpy as np
@@ -84,13 +83,11 @@ class NeighbourTable:
         return 1.0 - float(cells[:, BEATS_HEARD].sum()) / sent if sent > 0.0 else 0.0
 
 
-def heard(tables: Sequence[NeighbourTable], neighbour: int, t: float, beat: bool,
+def heard(grid: NeighbourGrid, rows: np.ndarray, neighbour: int, t: float, beat: bool,
           period: float, memory: float) -> np.ndarray:
-    """``neighbour`` heard directly at ``t`` by every table of ``tables`` (one grid): a
+    """``neighbour`` heard directly at ``t`` in the tables ``rows`` of ``grid``: a
     heartbeat (``beat``) or a dump. Returns which tables did not have it as a neighbour."""
-    grid = tables[0].grid
     col = grid.column_of(neighbour)           # may grow the cells: before reading them
-    rows = np.array([table.row for table in tables], dtype=np.int64)
     return _heard_from(grid.cells, rows, col, t, beat, period, memory)
 
 

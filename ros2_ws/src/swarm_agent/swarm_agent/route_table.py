@@ -147,29 +147,23 @@ class RouteTable:
         return True
 
 
-def heard(tables: Sequence[RouteTable], neighbour: int, seq: int | None,
-          dump_seq: int = 0) -> list[bool]:
-    """Link addition at every table of ``tables`` (one store) for ``neighbour`` heard
+def heard(store: RouteStore, rows: np.ndarray, neighbour: int, seq: int | None,
+          dump_seq: int = 0) -> np.ndarray:
+    """Link addition in the tables ``rows`` of ``store`` for ``neighbour`` heard
     directly (``_heard``; ``seq`` None: heard in a dump headed ``dump_seq``). Returns
     which tables changed."""
-    store = tables[0].store
     col = store.column_of(neighbour)         # may grow the cells: before reading them
-    rows = np.array([t.row for t in tables], dtype=np.int64)
-    changed = _heard(store.cells, rows, col, neighbour, -1 if seq is None else seq,
-                     dump_seq)
-    return changed.tolist()
+    return _heard(store.cells, rows, col, neighbour, -1 if seq is None else seq, dump_seq)
 
 
-def merge(tables: Sequence[RouteTable], owns: Sequence[int], sequences: Sequence[int],
+def merge(store: RouteStore, rows: np.ndarray, owns: Sequence[int], sequences: Sequence[int],
           stale: Sequence[int], neighbour: int, adverts: np.ndarray) -> tuple[
               list[int], list[bool], list[int]]:
-    """The selection rules at every table of ``tables`` (one store) on ``neighbour``'s
+    """The selection rules in the tables ``rows`` of ``store`` on ``neighbour``'s
     ``adverts`` (k, 3: destination, hops, sequence number), for routers ``owns`` whose
     own numbers are ``sequences`` and damping horizons ``stale`` (``_merge``). Returns
     each router's own number, whether its table changed and how many adverts it damped."""
-    store = tables[0].store
     cols = store.columns(adverts[:, 0])      # may grow the cells: before reading them
-    rows = np.array([t.row for t in tables], dtype=np.int64)
     own = np.array(owns, dtype=np.int64)
     own_seq = np.array(sequences, dtype=np.int64)
     dirty, damped = _merge(store.cells, rows, own, own_seq,
