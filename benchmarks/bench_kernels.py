@@ -46,17 +46,14 @@ def cases(receivers: int) -> dict[str, tuple[str, object]]:
         avoid_collisions(v, offsets, radii, 0.3, params, own_velocity=own, lag_s=0.6)
 
     store = route_table.RouteStore()
-    tables = [route_table.RouteTable(store) for _ in range(receivers)]
-    owns = list(range(100, 100 + receivers))
+    tables = [route_table.RouteTable(store, 100 + k) for k in range(receivers)]
     adverts = np.array([[d, 1 + d % 4, 1000 + 2 * (d % 3)] for d in range(50)],
                        dtype=np.int64)
-    sequences = [10] * receivers
-    stale = [12] * receivers
 
     rows = np.array([table.row for table in tables], dtype=np.int64)
 
     def dump() -> None:
-        route_table.merge(store, rows, owns, sequences, stale, 7, adverts)
+        route_table.merge(store, rows, 12, 7, adverts)
 
     def heartbeat() -> None:
         route_table.heard(store, rows, 7, 1000, 0)

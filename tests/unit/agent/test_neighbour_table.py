@@ -57,7 +57,7 @@ def test_many_receivers_in_one_call_equal_one_at_a_time():
         if not hearing:
             continue
         new = _heard([together[i] for i in hearing], neighbour, t, beat)
-        one = [bool(_heard([alone[i]], neighbour, t, beat)[0]) for i in hearing]
+        one = [k for k, i in enumerate(hearing) if len(_heard([alone[i]], neighbour, t, beat))]
         assert new.tolist() == one
     for a, b in zip(together, alone):
         assert a.heard() == b.heard() and a.loss() == b.loss()
@@ -65,8 +65,8 @@ def test_many_receivers_in_one_call_equal_one_at_a_time():
 
 def test_new_neighbours_silence_and_forgetting():
     a, b = _tables(2)
-    assert _heard([a, b], 9, 1.0, False).tolist() == [True, True]
-    assert _heard([a], 9, 1.2, True).tolist() == [False]
+    assert _heard([a, b], 9, 1.0, False).tolist() == [0, 1]   # both new
+    assert _heard([a], 9, 1.2, True).tolist() == []
     _heard([a], 4, 2.0, True)
     assert a.ids() == {4, 9} and b.ids() == {9}
     gone, next_silence = a.silent(3.3, 2.0)   # 9 last heard at 1.2: silent for 2.1 s
@@ -77,7 +77,7 @@ def test_new_neighbours_silence_and_forgetting():
     a.forget(4)
     assert a.silent(10.0, 2.0) == ([], math.inf) and a.loss() == 0.0
     # A forgotten neighbour heard again starts its counts afresh.
-    assert _heard([a], 9, 11.0, True).tolist() == [True]
+    assert _heard([a], 9, 11.0, True).tolist() == [0]
     assert a.loss() == 0.0
 
 

@@ -138,8 +138,8 @@ class DsdvRouter:
         a frame's receivers are updated in one call); None: a store of its own."""
         self.id = int(node_id)
         self.config = config or DsdvConfig()
-        self.sequence = boot_sequence(boot_time_s)  # own sequence number (even)
-        self.route_table = RouteTable(store)
+        self.route_table = RouteTable(store, self.id)
+        self.sequence = boot_sequence(boot_time_s)
         # Neighbours heard, with their heartbeat counts: the store's, row for row.
         self.neighbour_table = NeighbourTable(self.route_table.store.neighbours,
                                               self.route_table.row)
@@ -187,6 +187,16 @@ class DsdvRouter:
         self._info = info if callable(info) else bytes(info)
 
     # ------------------------------------------------------------------ queries
+    @property
+    def sequence(self) -> int:
+        """Own sequence number: even, grown at every full dump; held in the route store,
+        where the selection rules outbid an advert of this router's broken routes."""
+        return self.route_table.own_sequence
+
+    @sequence.setter
+    def sequence(self, sequence: int) -> None:
+        self.route_table.own_sequence = sequence
+
     @property
     def table(self) -> dict[int, RouteEntry]:
         """The route table by destination, as copies (``set_route`` writes one)."""
@@ -302,7 +312,7 @@ class DsdvRouter:
     def _learn_neighbourhood(self, neighbour: int, ones: frozenset[int],
                              others: frozenset[int]) -> None:
         """A neighbour's one-hop adverts are its neighbour set (for flood pruning):
-        ``ones`` it advertises at one hop, ``others`` at more (``_neighbour_set``)."""
+        ``ones`` it advertises at one hop, ``others`` at more (``_dump_terms``)."""
         known = self.two_hop.setdefault(neighbour, set())
         if not ones <= known or not known.isdisjoint(others):
             known |= ones
@@ -450,13 +460,13 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
             _link_added(groups, source, seq)
         elif kind is _FULL or kind is _INCREMENTAL:
             seq, adverts = wire.decode_adverts(packet.payload)
-            ones, others = _neighbour_set(source, adverts)
+            rows, ones, others = _dump_terms(source, adverts)
             groups = _groups([r for _, r in taking])
             _neighbour_heard(groups, t, source, False)
             for _, r in taking:
                 r._learn_neighbourhood(source, ones, others)
             _link_added(groups, source, None, seq)
-            _merged(groups, source, _advert_rows(adverts))
+            _merged(groups, source, rows)
         elif kind is _DATA:
             for i, r in taking:
                 outs[i] = _per_router(r, t, packet, kind, r._on_data)
@@ -485,8 +495,8 @@ def _count_all(routers: Sequence[DsdvRouter], key: str) -> None:
 
 
 class _Group(NamedTuple):
-    """Receivers of one frame that share a store and the heartbeat timing (the kernels'
-    scalars), with their rows in it."""
+    """Receivers of one frame that share a store and the settings the kernels take as
+    scalars (heartbeat timing, damping), with their rows in it."""
 
     routers: list[DsdvRouter]
     store: RouteStore
@@ -495,23 +505,23 @@ class _Group(NamedTuple):
 
 def _groups(routers: list[DsdvRouter]) -> list[_Group]:
     """``routers`` grouped for the kernels: one group in a process whose routers share a
-    store and their timing (the evaluator's, a composed container's), once per frame."""
-    first = routers[0]
-    store, config = first.route_table.store, first.config
-    period, memory = config.heartbeat_period_s, config.loss_memory
-    if all(r.route_table.store is store and (r.config is config or (
-            r.config.heartbeat_period_s == period and r.config.loss_memory == memory))
-           for r in routers):
+    store and settings (the evaluator's, a composed container's), once per frame."""
+    store, key = routers[0].route_table.store, _scalars(routers[0].config)
+    if all(r.route_table.store is store and _scalars(r.config) == key for r in routers):
         split = [routers]
     else:
-        keyed: dict[tuple[int, float, float], list[DsdvRouter]] = {}
+        keyed: dict[tuple[int, float, float, int], list[DsdvRouter]] = {}
         for r in routers:
-            keyed.setdefault((id(r.route_table.store), r.config.heartbeat_period_s,
-                              r.config.loss_memory), []).append(r)
+            keyed.setdefault((id(r.route_table.store), *_scalars(r.config)), []).append(r)
         split = list(keyed.values())
     return [_Group(group, group[0].route_table.store,
                    np.array([r.route_table.row for r in group], dtype=np.int64))
             for group in split]
+
+
+def _scalars(config: DsdvConfig) -> tuple[float, float, int]:
+    """The settings the kernels take as scalars, for one group of receivers."""
+    return config.heartbeat_period_s, config.loss_memory, config.stale_generations
 
 
 def _neighbour_heard(groups: list[_Group], t: float, neighbour: int, beat: bool) -> None:
@@ -519,48 +529,51 @@ def _neighbour_heard(groups: list[_Group], t: float, neighbour: int, beat: bool)
     dump: ``neighbour_table.heard``."""
     for routers, store, rows in groups:
         config = routers[0].config
-        new = neighbour_table.heard(store.neighbours, rows, neighbour, t, beat,
-                                    config.heartbeat_period_s, config.loss_memory)
-        if new.any():
-            for i in np.flatnonzero(new).tolist():
-                routers[i]._new_neighbour(t)
+        for i in neighbour_table.heard(store.neighbours, rows, neighbour, t, beat,
+                                       config.heartbeat_period_s,
+                                       config.loss_memory).tolist():
+            routers[i]._new_neighbour(t)
 
 
 def _link_added(groups: list[_Group], neighbour: int, seq: int | None,
                 dump_seq: int = 0) -> None:
     """Link addition (Fig. 3.8) at every receiver: ``route_table.heard``."""
     for routers, store, rows in groups:
-        changed = route_table.heard(store, rows, neighbour, seq, dump_seq)
-        if changed.any():
-            for i in np.flatnonzero(changed).tolist():
-                routers[i]._dirty = True
+        for i in route_table.heard(store, rows, neighbour, seq, dump_seq).tolist():
+            routers[i]._dirty = True
 
 
 def _merged(groups: list[_Group], neighbour: int, adverts: np.ndarray) -> None:
     """The selection rules (3.1.2.1) at every receiver: ``route_table.merge``."""
     for routers, store, rows in groups:
-        sequences, changed, damped = route_table.merge(
-            store, rows, [r.id for r in routers], [r.sequence for r in routers],
-            [r.config.stale_generations * SEQUENCE_STEP for r in routers], neighbour,
+        changed, damping, damped = route_table.merge(
+            store, rows, routers[0].config.stale_generations * SEQUENCE_STEP, neighbour,
             adverts)
-        for r, sequence, c, n in zip(routers, sequences, changed, damped):
-            r.sequence = sequence
-            if c:
-                r._dirty = True
-            if n:
-                r._count('damped', n)
+        for i in changed.tolist():
+            routers[i]._dirty = True
+        for i, n in zip(damping.tolist(), damped.tolist()):
+            routers[i]._count('damped', n)
 
 
-def _advert_rows(adverts: tuple[Advert, ...]) -> np.ndarray:
-    """Adverts as the (k, 3) array the route table's kernel reads, once per frame."""
-    return np.array(adverts, dtype=np.int64).reshape(-1, 3)
+_last_dump: tuple[object, int, tuple[np.ndarray, frozenset[int], frozenset[int]]] = (
+    None, -1, (np.zeros((0, 3), dtype=np.int64), frozenset(), frozenset()))
 
 
-def _neighbour_set(neighbour: int, adverts: tuple[Advert, ...]) -> tuple[
-        frozenset[int], frozenset[int]]:
-    """The destinations a neighbour advertises at one hop (its neighbours) and at more
-    (not its neighbours; itself excepted), once per frame for all its receivers. A
-    destination advertised both ways in one frame counts as a neighbour."""
+def _dump_terms(neighbour: int, adverts: tuple[Advert, ...]) -> tuple[
+        np.ndarray, frozenset[int], frozenset[int]]:
+    """What every receiver of a neighbour's dump reads, once per frame: the adverts as
+    the (k, 3) array the route table's kernel reads (shared: not to be written), the
+    destinations the neighbour advertises at one hop (its neighbours) and those at more
+    (not its neighbours; itself excepted). A destination advertised both ways in one
+    frame counts as a neighbour. The last result is kept by the identity of ``adverts``
+    (decoded frames are kept by content, ``wire.decode_adverts``: the mission's radio
+    hears the same frame as the robots)."""
+    global _last_dump
+    kept = _last_dump
+    if adverts is kept[0] and neighbour == kept[1]:
+        return kept[2]
     ones = frozenset([dest for dest, hops, _ in adverts if hops == 1])
     others = frozenset([dest for dest, hops, _ in adverts if hops != 1 and dest != neighbour])
-    return ones, others - ones
+    terms = (np.array(adverts, dtype=np.int64).reshape(-1, 3), ones, others - ones)
+    _last_dump = (adverts, neighbour, terms)
+    return terms

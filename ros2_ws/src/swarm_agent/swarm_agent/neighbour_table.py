@@ -86,7 +86,8 @@ class NeighbourTable:
 def heard(grid: NeighbourGrid, rows: np.ndarray, neighbour: int, t: float, beat: bool,
           period: float, memory: float) -> np.ndarray:
     """``neighbour`` heard directly at ``t`` in the tables ``rows`` of ``grid``: a
-    heartbeat (``beat``) or a dump. Returns which tables did not have it as a neighbour."""
+    heartbeat (``beat``) or a dump. Returns the positions in ``rows`` of the tables that
+    did not have it as a neighbour."""
     col = grid.column_of(neighbour)           # may grow the cells: before reading them
     return _heard_from(grid.cells, rows, col, t, beat, period, memory)
 
@@ -101,11 +102,15 @@ def _heard_from(cells: np.ndarray, rows: np.ndarray, col: int, t: float, beat: b
     """The neighbour of column ``col`` heard at ``t`` in each table of ``rows``; with a
     heartbeat (``beat``), the time since its last one heard tells how many it sent
     (at least one, the period's nearest multiple), and the counts decay by ``memory``
-    a heartbeat sent. Returns which tables did not have it as a neighbour."""
-    new = np.zeros(rows.shape[0], dtype=np.bool_)
+    a heartbeat sent. Returns the positions in ``rows`` of the tables that did not have
+    it as a neighbour."""
+    new = np.zeros(rows.shape[0], dtype=np.int64)
+    n = 0
     for i in range(rows.shape[0]):
         cell = cells[rows[i], col]
-        new[i] = math.isnan(cell[HEARD_AT])
+        if math.isnan(cell[HEARD_AT]):
+            new[n] = i
+            n += 1
         cell[HEARD_AT] = t
         if not beat:
             continue
@@ -117,4 +122,4 @@ def _heard_from(cells: np.ndarray, rows: np.ndarray, col: int, t: float, beat: b
         cell[BEAT_AT] = t
         cell[BEATS_HEARD] = cell[BEATS_HEARD] * keep + 1.0
         cell[BEATS_SENT] = cell[BEATS_SENT] * keep + sent
-    return new
+    return new[:n]

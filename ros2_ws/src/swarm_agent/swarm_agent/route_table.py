@@ -20,7 +20,6 @@ times a second per router (dumps, link breaks) are numpy on the router's row.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,25 +58,45 @@ def seq_newer(a: int, b: int) -> bool:
 
 
 class RouteStore(AddressGrid):
-    """The route tables of a process's routers (see the module docstring) and their
-    neighbour tables (``neighbours``, ``neighbour_table``), row for row."""
+    """The route tables of a process's routers (see the module docstring), their
+    neighbour tables (``neighbours``, ``neighbour_table``), row for row, and each
+    router's address and own sequence number (``own``, ``own_seq``: the selection rules
+    read and outbid them)."""
 
     def __init__(self) -> None:
         super().__init__((0, NONE, 0, 0), np.int64)
         self.neighbours = NeighbourGrid()
+        self.own = np.zeros(1, dtype=np.int64)
+        self.own_seq = np.zeros(1, dtype=np.int64)
 
-    def add_row(self) -> int:
+    def add_row(self, address: int = 0) -> int:
+        """A new router of radio address ``address``, every route empty; returns its row."""
         row = super().add_row()
         self.neighbours.add_row()
+        if row == len(self.own):
+            self.own = np.concatenate([self.own, np.zeros_like(self.own)])
+            self.own_seq = np.concatenate([self.own_seq, np.zeros_like(self.own_seq)])
+        self.own[row] = address
         return row
 
 
 class RouteTable:
     """One router's table: destination -> (next hop, hops, sequence number, changed)."""
 
-    def __init__(self, store: RouteStore | None = None) -> None:
+    def __init__(self, store: RouteStore | None = None, address: int = 0) -> None:
+        """The table of the router of radio address ``address`` in ``store`` (None: a
+        store of its own)."""
         self.store = store or RouteStore()
-        self.row = self.store.add_row()
+        self.row = self.store.add_row(address)
+
+    @property
+    def own_sequence(self) -> int:
+        """The router's own sequence number."""
+        return int(self.store.own_seq[self.row])
+
+    @own_sequence.setter
+    def own_sequence(self, sequence: int) -> None:
+        self.store.own_seq[self.row] = sequence
 
     def _cells(self) -> np.ndarray:
         """This table's cells of the columns in use (a view)."""
@@ -151,24 +170,21 @@ def heard(store: RouteStore, rows: np.ndarray, neighbour: int, seq: int | None,
           dump_seq: int = 0) -> np.ndarray:
     """Link addition in the tables ``rows`` of ``store`` for ``neighbour`` heard
     directly (``_heard``; ``seq`` None: heard in a dump headed ``dump_seq``). Returns
-    which tables changed."""
+    the positions in ``rows`` of the tables that changed."""
     col = store.column_of(neighbour)         # may grow the cells: before reading them
     return _heard(store.cells, rows, col, neighbour, -1 if seq is None else seq, dump_seq)
 
 
-def merge(store: RouteStore, rows: np.ndarray, owns: Sequence[int], sequences: Sequence[int],
-          stale: Sequence[int], neighbour: int, adverts: np.ndarray) -> tuple[
-              list[int], list[bool], list[int]]:
+def merge(store: RouteStore, rows: np.ndarray, stale: int, neighbour: int,
+          adverts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The selection rules in the tables ``rows`` of ``store`` on ``neighbour``'s
-    ``adverts`` (k, 3: destination, hops, sequence number), for routers ``owns`` whose
-    own numbers are ``sequences`` and damping horizons ``stale`` (``_merge``). Returns
-    each router's own number, whether its table changed and how many adverts it damped."""
+    ``adverts`` (k, 3: destination, hops, sequence number), with the damping horizon
+    ``stale`` (``_merge``; the routers' own numbers are outbid in the store). Returns the
+    positions in ``rows`` of the tables that changed and of those that damped adverts,
+    and how many each of the latter damped."""
     cols = store.columns(adverts[:, 0])      # may grow the cells: before reading them
-    own = np.array(owns, dtype=np.int64)
-    own_seq = np.array(sequences, dtype=np.int64)
-    dirty, damped = _merge(store.cells, rows, own, own_seq,
-                           np.array(stale, dtype=np.int64), neighbour, cols, adverts)
-    return own_seq.tolist(), dirty.tolist(), damped.tolist()
+    return _merge(store.cells, rows, store.own, store.own_seq, stale, neighbour, cols,
+                  adverts)
 
 
 _CELLS = RouteStore().cells
@@ -186,9 +202,10 @@ def _heard(cells: np.ndarray, rows: np.ndarray, col: int, neighbour: int, seq: i
     restored with the next even number, which outbids the break. A dump heard first
     (``seq`` < 0) makes the route a step below the sender's own number ``dump_seq`` (its
     header), older than its next heartbeat (a fixed 0 could be newer than a boot number).
-    Returns which tables changed.
+    Returns the positions in ``rows`` of the tables that changed.
     """
-    changed = np.zeros(rows.shape[0], dtype=np.bool_)
+    changed = np.zeros(rows.shape[0], dtype=np.int64)
+    n = 0
     for i in range(rows.shape[0]):
         cell = cells[rows[i], col]
         known = cell[HOPS] != NONE
@@ -205,19 +222,20 @@ def _heard(cells: np.ndarray, rows: np.ndarray, col: int, neighbour: int, seq: i
         else:
             best = seq
         cell[SEQ], cell[HOPS], cell[NEXT], cell[CHANGED] = best, 1, neighbour, 1
-        changed[i] = True
-    return changed
+        changed[n] = i
+        n += 1
+    return changed[:n]
 
 
-@kernel(_CELLS, _ROWS, np.array([7]), np.array([10]), np.array([12]), 3, np.array([0, 1]),
+@kernel(_CELLS, _ROWS, np.array([7]), np.array([10]), 12, 3, np.array([0, 1]),
         np.array([[5, 1, 8], [7, 0, 4]], dtype=np.int64))
 def _merge(cells: np.ndarray, rows: np.ndarray, own: np.ndarray, own_seq: np.ndarray,
-           stale: np.ndarray, neighbour: int, cols: np.ndarray, adverts: np.ndarray) -> tuple[
-               np.ndarray, np.ndarray]:
+           stale: int, neighbour: int, cols: np.ndarray, adverts: np.ndarray) -> tuple[
+               np.ndarray, np.ndarray, np.ndarray]:
     """The two selection rules (3.1.2.1) on a neighbour's ``adverts`` (k, 3: destination,
     hops as advertised, sequence number; destination k in column ``cols[k]``) in each
-    table of ``rows``, router ``own[i]`` with own number ``own_seq[i]`` (updated) and
-    damping horizon ``stale[i]``.
+    table of ``rows``, whose router has the address ``own[row]`` and the own number
+    ``own_seq[row]`` (outbid here), with the damping horizon ``stale``.
 
     A newer sequence number always wins; with the same number a shorter path wins. A
     newer broken-link advert (infinite hops) invalidates the route (Fig. 3.9). Damping:
@@ -226,19 +244,21 @@ def _merge(cells: np.ndarray, rows: np.ndarray, own: np.ndarray, own_seq: np.nda
     soon; ignoring an advert is the same as losing it, so loop freedom is kept). Only a
     new metric marks a route changed (a triggered update); a newer number alone waits
     for the next full dump (DSDV's settling rule, Perkins and Bhagwat 1994). An advert
-    of the router itself with a newer (odd, broken) number is outbid. Returns whether
-    each table changed and how many adverts each damped.
+    of the router itself with a newer (odd, broken) number is outbid. Returns the
+    positions in ``rows`` of the tables that changed, of those that damped adverts, and
+    how many each of the latter damped.
     """
     n = rows.shape[0]
     dirty = np.zeros(n, dtype=np.bool_)
     damped = np.zeros(n, dtype=np.int64)
     for i in range(n):
-        table = cells[rows[i]]
+        row = rows[i]
+        table = cells[row]
         for k in range(adverts.shape[0]):
             dest, hops, sequence = adverts[k, 0], adverts[k, 1], adverts[k, 2]
-            if dest == own[i]:
-                if 0 < ((sequence - own_seq[i]) & SEQUENCE_MASK) < HALF:
-                    own_seq[i] = (sequence + (1 if sequence % 2 else 2)) & SEQUENCE_MASK
+            if dest == own[row]:
+                if 0 < ((sequence - own_seq[row]) & SEQUENCE_MASK) < HALF:
+                    own_seq[row] = (sequence + (1 if sequence % 2 else 2)) & SEQUENCE_MASK
                 continue
             hops = INFINITE_HOPS if hops >= INFINITE_HOPS - 1 else hops + 1
             cell = table[cols[k]]
@@ -259,11 +279,13 @@ def _merge(cells: np.ndarray, rows: np.ndarray, own: np.ndarray, own_seq: np.nda
                 dirty[i] = True
                 continue
             elif not (cell[NEXT] == neighbour or hops <= cell[HOPS]
-                      or cell[HOPS] >= INFINITE_HOPS or ahead >= stale[i]):
+                      or cell[HOPS] >= INFINITE_HOPS or ahead >= stale):
                 damped[i] += 1
                 continue
             if cell[HOPS] != hops:
                 cell[CHANGED] = 1
                 dirty[i] = True
             cell[NEXT], cell[HOPS], cell[SEQ] = neighbour, hops, sequence
-    return dirty, damped
+    changed = np.flatnonzero(dirty)
+    damping = np.flatnonzero(damped)
+    return changed, damping, damped[damping]
