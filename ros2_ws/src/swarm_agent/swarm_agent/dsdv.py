@@ -384,20 +384,17 @@ class DsdvRouter:
         self._count('forwarded')
         out.packets.append(self._packet(hop, Kind.DATA, packet.payload, ttl=packet.ttl - 1))
 
-    def _on_flood(self, t: float, packet: Packet, out: RouterOutput) -> None:
-        origin, flood_id, chunk = wire.decode_routed(packet.payload)
-        if not self._remember((origin, flood_id)):
-            self._count('duplicates')
-            return
-        self._deliver(t, origin, Kind.FLOOD, chunk, out)
+    def _relay(self, packet: Packet, origin: int, flood_id: int) -> list[Packet]:
+        """A flood heard first: relayed unless its hops are spent or the coverage
+        condition lets this node be silent."""
         if packet.ttl <= 1:
             self._count('dropped_ttl')
         elif not self._should_relay(packet.source, origin, flood_id):
             self._count('flood_pruned')
         else:
             self._count('forwarded')
-            out.packets.append(self._packet(BROADCAST, Kind.FLOOD, packet.payload,
-                                            ttl=packet.ttl - 1))
+            return [self._packet(BROADCAST, Kind.FLOOD, packet.payload, ttl=packet.ttl - 1)]
+        return []
 
     def _deliver(self, t: float, origin: int, kind: int, chunk: bytes,
                  out: RouterOutput) -> None:
@@ -406,15 +403,22 @@ class DsdvRouter:
             out.delivered.append(Delivered(origin, kind, message))
             self._count('delivered')
             return
+        whole = self._reassemble(t, origin, kind, message, frag)
+        if whole is not None:
+            out.delivered.append(whole)
+
+    def _reassemble(self, t: float, origin: int, kind: int, piece: bytes,
+                    frag: tuple[int, int, int]) -> Delivered | None:
+        """One fragment of a message; the message once all its fragments are in."""
         frag_id, index, count = frag
         key = (origin, frag_id, count)
         started, pieces = self._partial.setdefault(key, (t, {}))
-        pieces[index] = message
-        if len(pieces) == count:
-            del self._partial[key]
-            out.delivered.append(Delivered(origin, kind, b''.join(pieces[i]
-                                                                  for i in range(count))))
-            self._count('delivered')
+        pieces[index] = piece
+        if len(pieces) < count:
+            return None
+        del self._partial[key]
+        self._count('delivered')
+        return Delivered(origin, kind, b''.join(pieces[i] for i in range(count)))
 
 
 # ---------------------------------------------------------------------- receive
@@ -443,13 +447,16 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
     try:
         if kind is _FLOOD:
             key = wire.routed_key(packet.payload)
+            first = []
             for i, r in taking:
                 if key in r._seen:
                     # A copy already handled (28 % of an agent's frames in a 50-agent
                     # thesis trial): dropped before any other work.
                     r._count('duplicates')
                 else:
-                    outs[i] = _per_router(r, t, packet, kind, r._on_flood)
+                    first.append((i, r))
+            if first:
+                _flood_heard(t, packet, first, outs)
         elif kind is _HEARTBEAT:
             seq, info = wire.decode_heartbeat(packet.payload)
             heartbeat = RouterOutput(delivered=[Delivered(source, Kind.HEARTBEAT, info)])
@@ -477,6 +484,42 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
         for _, r in taking:
             r._malformed(kind, source, exc)
     return outs
+
+
+def _flood_heard(t: float, packet: Packet, first: list[tuple[int, DsdvRouter]],
+                 outs: list[RouterOutput]) -> None:
+    """A flood heard for the first time by each router of ``first`` (position in
+    ``outs``, router): each remembers it, takes its message and relays it or not; the
+    frame is decoded once, and a whole message is one ``Delivered`` for all of them."""
+    try:
+        origin, flood_id, chunk = wire.decode_routed(packet.payload)
+    except WireError as exc:
+        for _, r in first:
+            r._malformed(_FLOOD, packet.source, exc)
+        return
+    key = (origin, flood_id)
+    for _, r in first:
+        r._remember(key)
+    try:
+        message, frag = wire.parse_chunk(chunk)
+    except WireError as exc:
+        for _, r in first:
+            r._malformed(_FLOOD, packet.source, exc)
+        return
+    whole = [Delivered(origin, Kind.FLOOD, message)] if frag is None else None
+    silent = RouterOutput(delivered=whole) if whole is not None else _NOTHING
+    for i, r in first:
+        if whole is not None:
+            r._count('delivered')
+            delivered = whole
+        else:
+            piece = r._reassemble(t, origin, Kind.FLOOD, message, frag)
+            delivered = [] if piece is None else [piece]
+        packets = r._relay(packet, origin, flood_id)
+        # Routers that send nothing and got the whole message share one output (their
+        # brains then take it together: ``reception``).
+        outs[i] = silent if not packets and delivered is whole else RouterOutput(
+            packets, delivered)
 
 
 def _per_router(router: DsdvRouter, t: float, packet: Packet, kind: Kind,
