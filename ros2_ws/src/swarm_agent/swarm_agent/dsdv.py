@@ -139,6 +139,7 @@ class DsdvRouter:
         self.id = int(node_id)
         self.config = config or DsdvConfig()
         self.route_table = RouteTable(store, self.id)
+        self._row = np.array([self.route_table.row], dtype=np.int64)   # its rows, alone
         self.sequence = boot_sequence(boot_time_s)
         # Neighbours heard, with their heartbeat counts: the store's, row for row.
         self.neighbour_table = NeighbourTable(self.route_table.store.neighbours,
@@ -549,6 +550,8 @@ class _Group(NamedTuple):
 def _groups(routers: list[DsdvRouter]) -> list[_Group]:
     """``routers`` grouped for the kernels: one group in a process whose routers share a
     store and settings (the evaluator's, a composed container's), once per frame."""
+    if len(routers) == 1:   # a node's router, the mission's: one frame at a time
+        return [_Group(routers, routers[0].route_table.store, routers[0]._row)]
     store, key = routers[0].route_table.store, _scalars(routers[0].config)
     if all(r.route_table.store is store and _scalars(r.config) == key for r in routers):
         split = [routers]

@@ -269,6 +269,7 @@ class FrameAuth:
         self._counter = boot_counter(clock()) - 1
         self.store = store or ReplayStore()
         self.row = self.store.add_row()
+        self._row = np.array([self.row], dtype=np.int64)   # its rows, alone
         self.window = window
         self._size = np.uint64(window)
         self._full = np.uint64((1 << window) - 1)
@@ -305,7 +306,9 @@ def open_all(auths: Sequence[FrameAuth], packet: Packet) -> list[Packet | None]:
     replay window is applied in one call per store (``_accept``)."""
     out: list[Packet | None] = [None] * len(auths)
     first = auths[0]
-    if all(a._verify is first._verify and a.store is first.store and a._size == first._size
+    if len(auths) == 1:   # a node's own window, the mission's: one frame at a time
+        groups = [[0]]
+    elif all(a._verify is first._verify and a.store is first.store and a._size == first._size
            for a in auths):
         groups = [list(range(len(auths)))]
     else:
@@ -323,7 +326,8 @@ def open_all(auths: Sequence[FrameAuth], packet: Packet) -> list[Packet | None]:
         opened, counter = result
         store = auth.store
         col = store.column_of(packet.source)     # may grow the cells: before reading them
-        rows = np.array([auths[i].row for i in group], dtype=np.int64)
+        rows = auth._row if len(auths) == 1 else np.array([auths[i].row for i in group],
+                                                          dtype=np.int64)
         verdicts = _accept(store.cells, rows, col, np.uint64(counter), auth._size,
                            auth._full).tolist()
         for i, verdict in zip(group, verdicts):
