@@ -1,5 +1,6 @@
-"""``dsdv.hear``: one frame applied to several routers at once is the same as applying
-it to each (``DsdvRouter.on_packet``), for every kind of frame and every way it fails."""
+"""``dsdv_receive.hear``: one frame applied to several routers at once is the same as
+applying it to each (``DsdvRouter.on_packet``), for every kind of frame and every way it
+fails."""
 
 from __future__ import annotations
 
@@ -7,7 +8,8 @@ import copy
 
 import pytest
 
-from swarm_agent.dsdv import DsdvRouter, hear
+from swarm_agent.dsdv import DsdvRouter
+from swarm_agent.dsdv_receive import hear
 from swarm_agent.packet import BROADCAST, Kind, Packet
 
 

@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from swarm_agent import neighbour_table
-from swarm_agent.dsdv import DsdvConfig, DsdvRouter, hear
+from swarm_agent.dsdv import DsdvConfig, DsdvRouter
+from swarm_agent.dsdv_receive import hear
 from swarm_agent.neighbour_table import NeighbourGrid, NeighbourTable
 from swarm_agent.packet import BROADCAST, Kind, Packet
 from swarm_agent.route_table import RouteStore

@@ -96,18 +96,6 @@ class Neighbour:
     heard_at: float
 
 
-_last_neighbour: Neighbour | None = None
-
-
-def _neighbour(info: NeighbourInfo, t: float) -> Neighbour:
-    """``Neighbour(info, t)``, one object for every receiver of one heartbeat."""
-    global _last_neighbour
-    last = _last_neighbour
-    if last is None or last.info is not info or last.heard_at != t:
-        last = _last_neighbour = Neighbour(info, t)
-    return last
-
-
 @dataclass(frozen=True)
 class BrainOutput:
     """What one call of ``step`` produces (read-only: the arrays are the brain's own)."""
@@ -290,7 +278,7 @@ class AgentBrain:
         for item in delivered:
             try:
                 if item.kind == _HEARTBEAT:
-                    neighbour = _neighbour(NeighbourInfo.decode(item.payload), t)
+                    neighbour = Neighbour(NeighbourInfo.decode(item.payload), t)
                     for brain in brains:
                         brain.neighbours[item.origin] = neighbour
                 elif message_kind(item.payload) == MSG_COST_ROW:

@@ -25,10 +25,10 @@
   are fragmented and reassembled.
 - Flood relaying by the coverage condition of Wu and Dai on two-hop knowledge, with
   extra relays against loss (``flood_relay``).
-- One frame, many receivers: ``hear`` applies a frame to every router of a process that
-  heard it, checking and decoding it once and updating the route tables of all of
-  them in one call per store (the headless evaluator, the composed container);
-  ``on_packet`` is the same for one.
+- One frame, many receivers: ``hear`` (``dsdv_receive``) applies a frame to every
+  router of a process that heard it, checking and decoding it once and updating the
+  route tables of all of them in one call per store (the headless evaluator, the
+  composed container); ``on_packet`` is the same for one.
 
 Malformed, truncated or unknown frames are counted in ``stats`` and dropped.
 """
@@ -36,15 +36,15 @@ Malformed, truncated or unknown frames are counted in ``stats`` and dropped.
 from __future__ import annotations
 
 from collections import OrderedDict
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass
 import logging
 import math
-from typing import NamedTuple
 
 import numpy as np
 
-from swarm_agent import flood_relay, neighbour_table, route_table, wire
+from swarm_agent import flood_relay, wire
+from swarm_agent.dsdv_receive import Delivered, hear, RouterOutput
 from swarm_agent.neighbour_table import NeighbourTable
 from swarm_agent.packet import BROADCAST, Kind, Packet
 from swarm_agent.route_table import (
@@ -60,10 +60,6 @@ from swarm_agent.wire import INFINITE_HOPS as INFINITE_HOPS  # this module's API
 from swarm_common.parameters import tunable
 
 LOG = logging.getLogger(__name__)
-_KINDS = {int(k): k for k in Kind}
-# Compared by identity in on_packet (an Enum attribute lookup per frame adds up).
-_HEARTBEAT, _FULL, _INCREMENTAL = Kind.HEARTBEAT, Kind.DSDV_FULL, Kind.DSDV_INCREMENTAL
-_DATA, _FLOOD = Kind.DATA, Kind.FLOOD
 BOOT_RATE = 128  # boot_sequence grows by 2 * BOOT_RATE a second of boot time
 
 
@@ -107,26 +103,6 @@ class DsdvConfig:
                                        'hop', low=1e-6, high=1.0)
     loss_memory: float = tunable(0.95, 'Per-heartbeat decay of the link loss counts', low=0.0,
                                  high=1.0)
-
-
-@dataclass(frozen=True)
-class Delivered:
-    """An application payload for this agent: heartbeat info, routed data or a flood."""
-
-    origin: int
-    kind: int
-    payload: bytes
-
-
-@dataclass
-class RouterOutput:
-    """What one received packet causes: frames to send and payloads for the app."""
-
-    packets: list[Packet] = field(default_factory=list)
-    delivered: list[Delivered] = field(default_factory=list)
-
-
-_NOTHING = RouterOutput()   # what most frames cause: one shared, read-only instance
 
 
 class DsdvRouter:
@@ -420,206 +396,3 @@ class DsdvRouter:
         del self._partial[key]
         self._count('delivered')
         return Delivered(origin, kind, b''.join(pieces[i] for i in range(count)))
-
-
-# ---------------------------------------------------------------------- receive
-def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[RouterOutput]:
-    """One frame heard by each of ``routers`` (the receivers of one transmission in this
-    process): what depends on the frame alone (checks, kind, decoding) is done once,
-    then each router applies it. Outputs in order, read-only (may be shared)."""
-    outs = [_NOTHING] * len(routers)
-    source = packet.source
-    if not 0 <= source < BROADCAST:   # no radio has this address (fuzzing)
-        _count_all(routers, 'rejected_bad_source')
-        return outs
-    destination = packet.destination
-    taking = [(i, r) for i, r in enumerate(routers)
-              if r.id != source and (destination == BROADCAST or r.id == destination)]
-    if len(taking) < len(routers):
-        _count_all([r for r in routers if r.id != source and r.id != destination
-                    and destination != BROADCAST], 'not_for_me')
-    if not taking:
-        return outs
-    kind = _KINDS.get(packet.kind)   # (Kind(...) raising would be 2 % of a composed swarm)
-    if packet.ttl <= 0 or kind is None:   # swarm_msgs/RadioPacket: ttl 0 is dropped
-        _count_all([r for _, r in taking],
-                   'dropped_ttl' if packet.ttl <= 0 else 'rejected_unknown_kind')
-        return outs
-    try:
-        if kind is _FLOOD:
-            key = wire.routed_key(packet.payload)
-            first = []
-            for i, r in taking:
-                if key in r._seen:
-                    # A copy already handled (28 % of an agent's frames in a 50-agent
-                    # thesis trial): dropped before any other work.
-                    r._count('duplicates')
-                else:
-                    first.append((i, r))
-            if first:
-                _flood_heard(t, packet, first, outs)
-        elif kind is _HEARTBEAT:
-            seq, info = wire.decode_heartbeat(packet.payload)
-            heartbeat = RouterOutput(delivered=[Delivered(source, Kind.HEARTBEAT, info)])
-            groups = _groups([r for _, r in taking])
-            _neighbour_heard(groups, t, source, True)
-            for i, _ in taking:
-                outs[i] = heartbeat
-            _link_added(groups, source, seq)
-        elif kind is _FULL or kind is _INCREMENTAL:
-            seq, adverts = wire.decode_adverts(packet.payload)
-            rows, ones, others = _dump_terms(source, adverts)
-            groups = _groups([r for _, r in taking])
-            _neighbour_heard(groups, t, source, False)
-            for _, r in taking:
-                r._learn_neighbourhood(source, ones, others)
-            _link_added(groups, source, None, seq)
-            _merged(groups, source, rows)
-        elif kind is _DATA:
-            for i, r in taking:
-                outs[i] = _per_router(r, t, packet, kind, r._on_data)
-        else:   # a known kind with no handler (FRAGMENT travels inside DATA and FLOOD)
-            _count_all([r for _, r in taking], 'rejected_unknown_kind')
-    except WireError as exc:
-        # The frame's own decoding failed: the same for every receiver.
-        for _, r in taking:
-            r._malformed(kind, source, exc)
-    return outs
-
-
-def _flood_heard(t: float, packet: Packet, first: list[tuple[int, DsdvRouter]],
-                 outs: list[RouterOutput]) -> None:
-    """A flood heard for the first time by each router of ``first`` (position in
-    ``outs``, router): each remembers it, takes its message and relays it or not; the
-    frame is decoded once, and a whole message is one ``Delivered`` for all of them."""
-    try:
-        origin, flood_id, chunk = wire.decode_routed(packet.payload)
-    except WireError as exc:
-        for _, r in first:
-            r._malformed(_FLOOD, packet.source, exc)
-        return
-    key = (origin, flood_id)
-    for _, r in first:
-        r._remember(key)
-    try:
-        message, frag = wire.parse_chunk(chunk)
-    except WireError as exc:
-        for _, r in first:
-            r._malformed(_FLOOD, packet.source, exc)
-        return
-    whole = [Delivered(origin, Kind.FLOOD, message)] if frag is None else None
-    silent = RouterOutput(delivered=whole) if whole is not None else _NOTHING
-    for i, r in first:
-        if whole is not None:
-            r._count('delivered')
-            delivered = whole
-        else:
-            piece = r._reassemble(t, origin, Kind.FLOOD, message, frag)
-            delivered = [] if piece is None else [piece]
-        packets = r._relay(packet, origin, flood_id)
-        # Routers that send nothing and got the whole message share one output (their
-        # brains then take it together: ``reception``).
-        outs[i] = silent if not packets and delivered is whole else RouterOutput(
-            packets, delivered)
-
-
-def _per_router(router: DsdvRouter, t: float, packet: Packet, kind: Kind,
-                handle: Callable[[float, Packet, RouterOutput], None]) -> RouterOutput:
-    out = RouterOutput()
-    try:
-        handle(t, packet, out)
-    except WireError as exc:
-        router._malformed(kind, packet.source, exc)
-    return out
-
-
-def _count_all(routers: Sequence[DsdvRouter], key: str) -> None:
-    for router in routers:
-        router._count(key)
-
-
-class _Group(NamedTuple):
-    """Receivers of one frame that share a store and the settings the kernels take as
-    scalars (heartbeat timing, damping), with their rows in it."""
-
-    routers: list[DsdvRouter]
-    store: RouteStore
-    rows: np.ndarray
-
-
-def _groups(routers: list[DsdvRouter]) -> list[_Group]:
-    """``routers`` grouped for the kernels: one group in a process whose routers share a
-    store and settings (the evaluator's, a composed container's), once per frame."""
-    if len(routers) == 1:   # a node's router, the mission's: one frame at a time
-        return [_Group(routers, routers[0].route_table.store, routers[0]._row)]
-    store, key = routers[0].route_table.store, _scalars(routers[0].config)
-    if all(r.route_table.store is store and _scalars(r.config) == key for r in routers):
-        split = [routers]
-    else:
-        keyed: dict[tuple[int, float, float, int], list[DsdvRouter]] = {}
-        for r in routers:
-            keyed.setdefault((id(r.route_table.store), *_scalars(r.config)), []).append(r)
-        split = list(keyed.values())
-    return [_Group(group, group[0].route_table.store,
-                   np.array([r.route_table.row for r in group], dtype=np.int64))
-            for group in split]
-
-
-def _scalars(config: DsdvConfig) -> tuple[float, float, int]:
-    """The settings the kernels take as scalars, for one group of receivers."""
-    return config.heartbeat_period_s, config.loss_memory, config.stale_generations
-
-
-def _neighbour_heard(groups: list[_Group], t: float, neighbour: int, beat: bool) -> None:
-    """``neighbour`` heard directly by every receiver, in a heartbeat (``beat``) or a
-    dump: ``neighbour_table.heard``."""
-    for routers, store, rows in groups:
-        config = routers[0].config
-        for i in neighbour_table.heard(store.neighbours, rows, neighbour, t, beat,
-                                       config.heartbeat_period_s,
-                                       config.loss_memory).tolist():
-            routers[i]._new_neighbour(t)
-
-
-def _link_added(groups: list[_Group], neighbour: int, seq: int | None,
-                dump_seq: int = 0) -> None:
-    """Link addition (Fig. 3.8) at every receiver: ``route_table.heard``."""
-    for routers, store, rows in groups:
-        for i in route_table.heard(store, rows, neighbour, seq, dump_seq).tolist():
-            routers[i]._dirty = True
-
-
-def _merged(groups: list[_Group], neighbour: int, adverts: np.ndarray) -> None:
-    """The selection rules (3.1.2.1) at every receiver: ``route_table.merge``."""
-    for routers, store, rows in groups:
-        changed, damping, damped = route_table.merge(
-            store, rows, routers[0].config.stale_generations * SEQUENCE_STEP, neighbour,
-            adverts)
-        for i in changed.tolist():
-            routers[i]._dirty = True
-        for i, n in zip(damping.tolist(), damped.tolist()):
-            routers[i]._count('damped', n)
-
-
-_last_dump: tuple[object, int, tuple[np.ndarray, frozenset[int], frozenset[int]]] = (
-    None, -1, (np.zeros((0, 3), dtype=np.int64), frozenset(), frozenset()))
-
-
-def _dump_terms(neighbour: int, adverts: tuple[Advert, ...]) -> tuple[
-        np.ndarray, frozenset[int], frozenset[int]]:
-    """What every receiver of a neighbour's dump reads, once per frame: the adverts as
-    the (k, 3) array the route table's kernel reads (shared: not to be written), the
-    destinations the neighbour advertises at one hop (its neighbours) and those at more
-    (not its neighbours; itself excepted). A destination advertised both ways in one
-    frame counts as a neighbour. The last result is kept by the identity of ``adverts``
-    (decoded frames are kept by content, ``wire.decode_adverts``: the mission's radio
-    hears the same frame as the robots)."""
-    global _last_dump
-    kept = _last_dump
-    if adverts is kept[0] and neighbour == kept[1]:
-        return kept[2]
-    ones = frozenset([dest for dest, hops, _ in adverts if hops == 1])
-    others = frozenset([dest for dest, hops, _ in adverts if hops != 1 and dest != neighbour])
-    terms = (np.array(adverts, dtype=np.int64).reshape(-1, 3), ones, others - ones)
-    _last_dump = (adverts, neighbour, terms)
-    return terms

@@ -5,7 +5,7 @@ brains (the headless evaluator) hands it to all its receivers at once, and a nod
 one brain hands it to that one (``AgentBrain.on_packet``). Both run this code: the frame
 is opened by every receiver's own replay window in one call (``frame_auth.open_all``),
 then routed by every
-receiving router in one call (``dsdv.hear``: the frame's checks and decoding once, each
+receiving router in one call (``dsdv_receive.hear``: the frame's checks and decoding once, each
 router's state after), and what the routers deliver is consumed by each brain.
 """
 
@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from swarm_agent.dsdv import hear, RouterOutput
+from swarm_agent.dsdv_receive import hear, RouterOutput
 from swarm_agent.frame_auth import open_all
 from swarm_agent.packet import Packet
 
