@@ -6,7 +6,8 @@
 Both ways in the same run (``swarm_common.jit.use_python``), on the work of the 50-agent
 thesis trial: a collision filter with 1-7 neighbours, a 50-advert route dump, a
 heartbeat and a sealed frame heard by ``--receivers`` brains of one process (22 on
-average in that trial). Prints microseconds per call and the ratio.
+average in that trial), a Kalman prediction and a zero-velocity update. Prints
+microseconds per call and the ratio.
 """
 
 from __future__ import annotations
@@ -16,8 +17,9 @@ import time
 
 import numpy as np
 
-from swarm_agent import route_table
+from swarm_agent import neighbour_table, route_table
 from swarm_agent.frame_auth import FrameAuth, Keyring, open_all, ReplayStore
+from swarm_agent.kalman import KalmanFilter
 from swarm_agent.packet import BROADCAST, Kind, Packet
 from swarm_agent.setpoint import avoid_collisions, SetpointParams
 from swarm_common import jit
@@ -58,6 +60,22 @@ def cases(receivers: int) -> dict[str, tuple[str, object]]:
     def heartbeat() -> None:
         route_table.heard(store, rows, 7, 1000, 0)
 
+    beats = iter(range(1 << 62))
+
+    def neighbour() -> None:
+        neighbour_table.heard(store.neighbours, rows, 7, 0.5 * next(beats), True, 0.5, 0.95)
+
+    kf = KalmanFilter((1.0, 2.0), consider_time_s=30.0)
+    kf.cross = rng.normal(0.0, 0.01, (6, 6))   # three anchors held as consider parameters
+    accel = np.array([0.01, -0.02])
+    zero, r_velocity = np.zeros(2), np.eye(2) * 0.01 ** 2
+
+    def predict() -> None:
+        kf.predict(0.02, accel)
+
+    def stand_still() -> None:
+        kf.update_velocity(zero, r_velocity)
+
     key = Keyring(((1, bytes(range(32))),), seal_id=1)
     sender = FrameAuth(key, lambda: 1.8e9)
     replay = ReplayStore()
@@ -70,6 +88,10 @@ def cases(receivers: int) -> dict[str, tuple[str, object]]:
     return {'collision filter (setpoint._avoid)': ('1-7 neighbours', avoid),
             'selection rules (route_table._merge)': (f'50 adverts x {receivers}', dump),
             'link addition (route_table._heard)': (f'heartbeat x {receivers}', heartbeat),
+            'neighbours heard (neighbour_table._heard_from)': (f'heartbeat x {receivers}',
+                                                                neighbour),
+            'Kalman prediction (kalman._propagate)': ('6 states, 3 anchors', predict),
+            'zero-velocity update (kalman._update)': ('6 states, 3 anchors', stand_still),
             'replay windows (frame_auth._accept)': (f'frame x {receivers}, tag once',
                                                      opened)}
 
@@ -83,13 +105,13 @@ def main() -> int:
         print('bench_kernels: numba is not in use here (SWARM_JIT=0 or not installed)')
         return 1
     work = cases(args.receivers)
-    print(f'{"kernel":40s} {"work":26s} {"source us":>10s} {"compiled us":>12s} {"ratio":>6s}')
+    print(f'{"kernel":46s} {"work":26s} {"source us":>10s} {"compiled us":>12s} {"ratio":>6s}')
     for name, (what, call) in work.items():
         jit.use_python(True)
         source = _per_call_us(call, max(args.repeat // 20, 10))
         jit.use_python(False)
         compiled = _per_call_us(call, args.repeat)
-        print(f'{name:40s} {what:26s} {source:10.1f} {compiled:12.2f} {source / compiled:6.1f}')
+        print(f'{name:46s} {what:26s} {source:10.1f} {compiled:12.2f} {source / compiled:6.1f}')
     return 0
 
 
