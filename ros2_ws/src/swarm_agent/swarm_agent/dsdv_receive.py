@@ -231,25 +231,12 @@ def _merged(groups: list[_Group], neighbour: int, adverts: np.ndarray) -> None:
             routers[i]._count('damped', n)
 
 
-_last_dump: tuple[object, int, tuple[np.ndarray, frozenset[int], frozenset[int]]] = (
-    None, -1, (np.zeros((0, 3), dtype=np.int64), frozenset(), frozenset()))
-
-
 def _dump_terms(neighbour: int, adverts: tuple[Advert, ...]) -> tuple[
         np.ndarray, frozenset[int], frozenset[int]]:
     """What every receiver of a neighbour's dump reads, once per frame: the adverts as
-    the (k, 3) array the route table's kernel reads (shared: not to be written), the
-    destinations the neighbour advertises at one hop (its neighbours) and those at more
-    (not its neighbours; itself excepted). A destination advertised both ways in one
-    frame counts as a neighbour. The last result is kept by the identity of ``adverts``
-    (decoded frames are kept by content, ``wire.decode_adverts``: the mission's radio
-    hears the same frame as the robots)."""
-    global _last_dump
-    kept = _last_dump
-    if adverts is kept[0] and neighbour == kept[1]:
-        return kept[2]
+    the (k, 3) array the route table's kernel reads, the destinations the neighbour
+    advertises at one hop (its neighbours) and those at more (not its neighbours; itself
+    excepted). A destination advertised both ways in one frame counts as a neighbour."""
     ones = frozenset([dest for dest, hops, _ in adverts if hops == 1])
     others = frozenset([dest for dest, hops, _ in adverts if hops != 1 and dest != neighbour])
-    terms = (np.array(adverts, dtype=np.int64).reshape(-1, 3), ones, others - ones)
-    _last_dump = (adverts, neighbour, terms)
-    return terms
+    return np.array(adverts, dtype=np.int64).reshape(-1, 3), ones, others - ones

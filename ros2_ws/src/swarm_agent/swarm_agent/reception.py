@@ -4,9 +4,9 @@ A transmission reaches every robot in range (thesis 3.1.2); a process that holds
 brains (the headless evaluator) hands it to all its receivers at once, and a node with
 one brain hands it to that one (``AgentBrain.on_packet``). Both run this code: the frame
 is opened by every receiver's own replay window in one call (``frame_auth.open_all``),
-then routed by every
-receiving router in one call (``dsdv_receive.hear``: the frame's checks and decoding once, each
-router's state after), and what the routers deliver is consumed by each brain.
+then routed by every receiving router in one call (``dsdv_receive.hear``: the frame's
+checks and decoding once, each router's state after), and what the routers deliver is
+consumed by each brain (alike payloads by all their brains at once).
 """
 
 from __future__ import annotations
