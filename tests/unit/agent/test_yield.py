@@ -7,6 +7,7 @@ import numpy as np
 from shapely.geometry import box
 
 from swarm_agent.agent_factory import make_brain
+from swarm_agent.setpoint import avoid_collisions, SetpointParams, stays_parked
 from swarm_common.goals import Goal
 from swarm_common.shapes import Shape
 
@@ -84,3 +85,61 @@ def test_a_robot_parked_outside_the_shape_moves_back_in():
         t += DT
         out = brain.step(t)
     assert brain._parked and not out.velocity_setpoint.any()
+
+
+def test_stays_parked_only_where_the_filter_leaves_a_parked_robot_still(kernels):
+    """``stays_parked`` against the filter itself, over random neighbourhoods (some
+    neighbours inside the parked margin, some on its edge, some outside), with and
+    without a yield margin: where it is True, ``avoid_collisions`` gives a parked
+    robot's zero setpoint back as zero; with one neighbour it is True exactly there.
+    (Boxed in on all sides the filter may give zero too, its least-violating answer;
+    stays_parked is False there and the brain recomputes.)"""
+    rng = np.random.default_rng(7)
+    for margin in (0.0, 0.25):
+        params = SetpointParams(yield_margin=margin)
+        reach = 0.3 + 0.5 + params.avoid_buffer + margin     # own + neighbour + margins
+        answers = {True: 0, False: 0}
+        for _ in range(600):
+            k = int(rng.integers(1, 6))
+            distance = rng.uniform(0.5 * reach, 2.0 * reach, k)
+            if rng.random() < 0.2:
+                distance[0] = reach                          # on the margin's edge
+            angle = rng.uniform(-np.pi, np.pi, k)
+            offsets = np.column_stack([distance * np.cos(angle), distance * np.sin(angle)])
+            radii = np.full(k, 0.5)
+            still = not avoid_collisions(np.zeros(2), offsets, radii, 0.3, params,
+                                         parked=True).any()
+            answer = stays_parked(offsets, radii, 0.3, params)
+            assert still or not answer
+            if k == 1:
+                assert answer == still
+            answers[answer] += 1
+        assert min(answers.values()) > 100          # both answers were tested
+    assert stays_parked(np.zeros((0, 2)), np.zeros(0), 0.3, SetpointParams())
+
+
+def test_a_parked_robot_at_rest_takes_a_clear_scan_without_a_step():
+    """A scan with every neighbour outside the parked margin leaves a parked robot at
+    rest (``rest`` is true: nothing to recompute) with the same command and force as a
+    brain made to recompute; a neighbour inside the margin still wakes it to yield."""
+    brain, t = _parked_brain()
+    reference, _ = _parked_brain()
+    for brain_ in (brain, reference):
+        brain_.step(t)
+    clear = [[1.2, 0.0], [0.0, -1.3]]             # beyond 0.3 + 0.5 + 0.3 m
+    for _ in range(30):
+        t += DT
+        brain.on_proximity(t, clear, [0.5, 0.5])
+        reference.on_proximity(t, clear, [0.5, 0.5])
+        reference._avoid_due = True                # recomputes, as every scan did
+        resting = brain.rest(t)
+        out, ref = (brain.step(t) if not resting else None), reference.step(t)
+        if out is not None:
+            np.testing.assert_array_equal(out.force, ref.force)
+        assert not ref.force.any() and not ref.velocity_setpoint.any()
+        assert not brain._commanded
+    assert resting
+    t += DT
+    brain.on_proximity(t, [[0.6, 0.0]], [0.5])     # 0.5 m inside the 0.3 m buffer
+    assert not brain.rest(t)
+    assert brain.step(t).velocity_setpoint[0] < 0.0   # yields west

@@ -69,7 +69,13 @@ from swarm_agent.mesh_messages import (
 from swarm_agent.packet import Kind, Packet
 from swarm_agent.reception import receive
 from swarm_agent.route_table import RouteStore
-from swarm_agent.setpoint import avoid_collisions, GiveWay, tracking_lag_s, velocity_setpoint
+from swarm_agent.setpoint import (
+    avoid_collisions,
+    GiveWay,
+    stays_parked,
+    tracking_lag_s,
+    velocity_setpoint,
+)
 from swarm_agent.stall import StallDetector
 from swarm_common.goals import Goal
 from swarm_common.robot_types import RobotType
@@ -255,7 +261,13 @@ class AgentBrain:
         ok = np.isfinite(offsets).all(axis=1) & np.isfinite(radii) & (radii >= 0.0)
         self._proximity = (offsets[ok], radii[ok])
         self._proximity_at = t
-        self._avoid_due = True
+        # A parked robot at rest (zero setpoint and command) that no neighbour comes too
+        # close to would get the zero command again: the scan changes nothing now, and is
+        # kept for the next recomputation (half the evaluator's active steps were these).
+        if not (self._parked and not self._commanded and not self._stall.sidestepping(t)
+                and stays_parked(*self._proximity, self.robot.coverage_radius,
+                                 self.config.setpoint)):
+            self._avoid_due = True
 
     def on_packet(self, t: float, packet: Packet) -> None:
         """A packet heard on the radio: authenticate it, route it, and consume what is

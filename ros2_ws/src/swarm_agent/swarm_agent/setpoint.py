@@ -253,7 +253,7 @@ def _avoid(vx: float, vy: float, offsets: np.ndarray, radii: np.ndarray,
     for j in range(k):
         ox, oy = offsets[j, 0], offsets[j, 1]
         d = math.hypot(ox, oy)
-        b = 0.5 * avoid_rate * (d - (own_radius + radii[j] + buffer))
+        b = _gap_bound(d, radii[j], own_radius, buffer, avoid_rate)
         if lag_s > 0.0:
             b = b - avoid_rate * lag_s * ((ox * ux + oy * uy) / max(d, 1e-9))
         if b < v_max and d > 1e-9:
@@ -280,6 +280,40 @@ def _avoid(vx: float, vy: float, offsets: np.ndarray, radii: np.ndarray,
     if speed > v_max:
         return vx * (v_max / speed), vy * (v_max / speed)
     return vx, vy
+
+
+@helper
+def _gap_bound(d: float, radius: float, own_radius: float, buffer: float,
+               avoid_rate: float) -> float:
+    """b_j of ``_avoid`` before the lead term: half the rate times the gap h_j."""
+    return 0.5 * avoid_rate * (d - (own_radius + radius + buffer))
+
+
+def stays_parked(offsets, radii, own_radius: float, params: SetpointParams) -> bool:
+    """True when no neighbour is closer than a parked robot's margin (every b_j >= 0):
+    then v = 0 satisfies every constraint of ``avoid_collisions``, nothing swerves, and
+    the filter gives the parked robot's zero setpoint back as zero. A parked robot's
+    scan that says so changes nothing, so its brain need not recompute (issue 23: work
+    only where input changes something). False does not promise a nonzero command (a
+    robot boxed in on all sides gets the least-violating one, which may be zero)."""
+    offsets = np.ascontiguousarray(offsets, dtype=float).reshape(-1, 2)
+    if not len(offsets):
+        return True
+    return _stays_parked(offsets, np.ascontiguousarray(radii, dtype=float),
+                         float(own_radius), params.avoid_buffer + params.yield_margin,
+                         params.avoid_rate)
+
+
+@kernel(np.array([[1.0, 0.2], [0.9, -0.4]]), np.array([0.4, 0.5]), 0.4, 0.3, 1.0)
+def _stays_parked(offsets: np.ndarray, radii: np.ndarray, own_radius: float,
+                  buffer: float, avoid_rate: float) -> bool:
+    """``stays_parked``'s test, with ``_avoid``'s arithmetic (``_gap_bound``): at v = 0
+    a constraint binds where b_j < 0, among the neighbours ``_avoid`` keeps (d_j > 0)."""
+    for j in range(offsets.shape[0]):
+        d = math.hypot(offsets[j, 0], offsets[j, 1])
+        if d > 1e-9 and _gap_bound(d, radii[j], own_radius, buffer, avoid_rate) < 0.0:
+            return False
+    return True
 
 
 @helper
