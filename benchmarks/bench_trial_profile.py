@@ -8,7 +8,7 @@ each call (the clock reads add to the run), transmissions sorted by kind: heartb
 route dump (full or incremental), flood (its deliveries counted as first copies and
 duplicates), routed data. Prints per kind the transmissions, the deliveries, CPU seconds,
 microseconds per delivery and share of the run, the brain steps taken and rested
-(``brain_steps``) and why the active ones were active. docs/throughput.md shows its
+(``brain_steps``) and why the active ones were active, with their CPU. docs/throughput.md shows its
 figures.
 
   scripts/env.sh python benchmarks/bench_trial_profile.py --seed 0
@@ -46,30 +46,37 @@ def instrument(cost: dict, count: dict, sent: dict, why: dict) -> None:
         receive(t, packet, brains)
         cost[kind] += clock() - t0
 
+    reason: dict[int, str] = {}    # brain -> why its next step is active
+
     def timed_step(self, t):
         t0 = clock()
         out = step(self, t)
-        cost['brain step'] += clock() - t0
+        spent = clock() - t0
+        cost['brain step'] += spent
         count['brain step'] += 1
         sent['brain step'] += 1
+        cost[f'step: {reason.pop(id(self), "not asked to rest")}'] += spent
         return out
 
     def counted_rest(self, t):
         if rest(self, t):
             return True
-        if self._parked_since is None or not self._parked or self._commanded \
-                or self._yielding:
-            why['moving'] += 1
-        elif t >= self._next_outer:
-            why['outer loop due'] += 1
+        moving = (self._parked_since is None or not self._parked or self._commanded
+                  or self._yielding)
+        if t >= self._next_outer:
+            key = 'outer loop due'
         elif not self.config.is_beacon and t >= self._next_localization:
-            why['localization due'] += 1
+            key = 'localization due'
+        elif not self.router.idle(t):
+            key = 'router timer due'
+        elif moving:
+            key = 'moving (inner loop only)'
         elif self._avoid_due:
-            why['proximity scan to act on'] += 1
-        elif self._outbox:
-            why['frames to send'] += 1
+            key = 'proximity scan to act on'
         else:
-            why['router timer due'] += 1
+            key = 'frames to send'
+        why[key] += 1
+        reason[id(self)] = key
         return False
 
     headless.receive = timed_receive
@@ -90,16 +97,21 @@ def main() -> None:
           f'{wall:.1f} wall-s, settling time {record.metrics["settling_time"]}')
     print(f'{"work":<22} {"calls":>9} {"deliveries":>10} {"CPU s":>8} {"us each":>8} '
           f'{"share":>6}')
-    for kind in sorted(cost, key=lambda k: -cost[k]):
+    for kind in sorted((k for k in cost if not k.startswith('step: ')),
+                       key=lambda k: -cost[k]):
         print(f'{kind:<22} {sent[kind]:>9,} {count[kind]:>10,} {cost[kind]:>8.2f} '
               f'{1e6 * cost[kind] / max(count[kind], 1):>8.1f} {cost[kind] / total:>6.1%}')
         if kind == 'flood':
             print(f'{"- of which duplicates":<22} {"":>9} '
                   f'{count["- of which duplicates"]:>10,}')
-    rest = total - sum(cost.values())
+    rest = total - sum(v for k, v in cost.items() if not k.startswith('step: '))
     print(f'{"everything else":<20} {"":>10} {rest:>8.2f} {"":>8} {rest / total:>6.1%}')
     print('brain steps:', record.metrics['brain_steps'])
-    print('active because:', dict(sorted(why.items(), key=lambda kv: -kv[1])))
+    print('active brain steps by what was due (the first of outer loop, localization,'
+          ' router timer, moving, scan, frames), CPU s and us a step:')
+    for key, n in sorted(why.items(), key=lambda kv: -kv[1]):
+        spent = cost[f'step: {key}']
+        print(f'  {key:<28} {n:>9,} {spent:>8.2f} {1e6 * spent / max(n, 1):>8.1f}')
 
 
 if __name__ == '__main__':

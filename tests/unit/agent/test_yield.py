@@ -7,6 +7,7 @@ import numpy as np
 from shapely.geometry import box
 
 from swarm_agent.agent_factory import make_brain
+from swarm_agent.brain import AgentBrain
 from swarm_agent.setpoint import avoid_collisions, SetpointParams, stays_parked
 from swarm_common.goals import Goal
 from swarm_common.shapes import Shape
@@ -143,3 +144,31 @@ def test_a_parked_robot_at_rest_takes_a_clear_scan_without_a_step():
     brain.on_proximity(t, [[0.6, 0.0]], [0.5])     # 0.5 m inside the 0.3 m buffer
     assert not brain.rest(t)
     assert brain.step(t).velocity_setpoint[0] < 0.0   # yields west
+
+
+def test_one_call_for_many_scans_is_the_same_as_one_call_each(kernels):
+    """``AgentBrain.take_proximity`` for several brains (a world's scan: a parked one
+    with a clear scan, a parked one with a neighbour inside its margin, one with no
+    detections, a moving one, a row that is not finite) leaves each brain as
+    ``on_proximity`` with its own rows does."""
+    def brains():
+        parked = [_parked_brain()[0] for _ in range(3)]
+        moving = make_brain(agent_id=4, agent_type=2, initial_position=(0.0, 0.0))
+        return [*parked, moving]
+    offsets = np.array([[1.2, 0.0], [0.0, -1.3],   # brain 0: clear
+                        [0.6, 0.0], [np.nan, 0.0],  # brain 1: close, and a bad row
+                        [0.6, 0.0]])                # brain 3 (moving): close
+    radii = np.array([0.5, 0.5, 0.5, 0.5, 0.5])
+    starts, ends = np.array([0, 2, 4, 4]), np.array([2, 4, 4, 5])
+    many, each = brains(), brains()
+    for brain in many + each:
+        brain._avoid_due = False
+    AgentBrain.take_proximity(3.5, many, offsets, radii, starts, ends)
+    for brain, lo, hi in zip(each, starts, ends):
+        brain.on_proximity(3.5, offsets[lo:hi], radii[lo:hi])
+    for a, b in zip(many, each):
+        np.testing.assert_array_equal(a._proximity[0], b._proximity[0])
+        np.testing.assert_array_equal(a._proximity[1], b._proximity[1])
+        assert a._proximity_at == b._proximity_at == 3.5
+        assert a._avoid_due == b._avoid_due
+    assert [b._avoid_due for b in many] == [False, True, False, True]

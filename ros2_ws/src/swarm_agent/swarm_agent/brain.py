@@ -72,7 +72,7 @@ from swarm_agent.route_table import RouteStore
 from swarm_agent.setpoint import (
     avoid_collisions,
     GiveWay,
-    stays_parked,
+    stays_parked_each,
     tracking_lag_s,
     velocity_setpoint,
 )
@@ -84,6 +84,7 @@ from swarm_mission.contour import sample_boundary
 
 LOG = logging.getLogger(__name__)
 _HEARTBEAT = int(Kind.HEARTBEAT)   # compared as int (an Enum comparison per frame adds up)
+_FIRST = np.zeros(1, dtype=np.int64)   # one scan's rows start at 0
 
 def _next_tick(due: float, t: float, period: float) -> float:
     """The next due time after ``t`` on the grid ``due + k * period`` (no catch-up bursts)."""
@@ -254,20 +255,45 @@ class AgentBrain:
     def on_proximity(self, t: float, offsets, radii) -> None:
         """Proximity scan: neighbours' centres minus this robot's (k, 2, map frame, m)
         and their coverage radii (k,). Rows that are not finite are dropped."""
-        offsets = np.asarray(offsets, dtype=float).reshape(-1, 2)
-        radii = np.asarray(radii, dtype=float).reshape(-1)
+        offsets = np.array(offsets, dtype=float).reshape(-1, 2)    # the brain's own copy
+        radii = np.array(radii, dtype=float).reshape(-1)
         if len(offsets) != len(radii):
             return
+        AgentBrain.take_proximity(t, (self,), offsets, radii, _FIRST, np.array([len(radii)]))
+
+    @staticmethod
+    def take_proximity(t: float, brains: Sequence[AgentBrain], offsets: np.ndarray,
+                       radii: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> None:
+        """The scans of ``brains`` at ``t`` in one call: brain k saw the rows
+        ``starts[k]:ends[k]`` of ``offsets`` (M, 2) and ``radii`` (M,) (a whole world's
+        scan: the headless evaluator; one robot's: ``on_proximity``). Rows that are not
+        finite are dropped, each brain keeps its rows as views of the kept ones.
+
+        A parked robot at rest (zero setpoint and command) that no neighbour comes too
+        close to would get the zero command again (``setpoint.stays_parked``, one call
+        for all such brains): its scan changes nothing now and is kept for the next
+        recomputation; every other scan makes its brain recompute its command."""
         ok = np.isfinite(offsets).all(axis=1) & np.isfinite(radii) & (radii >= 0.0)
-        self._proximity = (offsets[ok], radii[ok])
-        self._proximity_at = t
-        # A parked robot at rest (zero setpoint and command) that no neighbour comes too
-        # close to would get the zero command again: the scan changes nothing now, and is
-        # kept for the next recomputation (half the evaluator's active steps were these).
-        if not (self._parked and not self._commanded and not self._stall.sidestepping(t)
-                and stays_parked(*self._proximity, self.robot.coverage_radius,
-                                 self.config.setpoint)):
-            self._avoid_due = True
+        if not ok.all():
+            kept = np.concatenate(([0], np.cumsum(ok)))
+            offsets, radii = offsets[ok], radii[ok]
+            starts, ends = kept[starts], kept[ends]
+        starts, ends = starts.tolist(), ends.tolist()
+        at_rest = [k for k, b in enumerate(brains)
+                   if b._parked and not b._commanded and not b._stall.sidestepping(t)]
+        unchanged: set[int] = set()
+        if at_rest:
+            clear = stays_parked_each(offsets, radii, [starts[k] for k in at_rest],
+                                      [ends[k] for k in at_rest],
+                                      [brains[k].robot.coverage_radius for k in at_rest],
+                                      [brains[k].config.setpoint for k in at_rest])
+            unchanged = {k for k, c in zip(at_rest, clear) if c}
+        for k, brain in enumerate(brains):
+            lo, hi = starts[k], ends[k]
+            brain._proximity = (offsets[lo:hi], radii[lo:hi])
+            brain._proximity_at = t
+            if k not in unchanged:
+                brain._avoid_due = True
 
     def on_packet(self, t: float, packet: Packet) -> None:
         """A packet heard on the radio: authenticate it, route it, and consume what is

@@ -63,6 +63,7 @@ neighbours' broadcast estimates (no fresh scan) carry both robots' localization 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 import math
 
@@ -296,24 +297,42 @@ def stays_parked(offsets, radii, own_radius: float, params: SetpointParams) -> b
     scan that says so changes nothing, so its brain need not recompute (issue 23: work
     only where input changes something). False does not promise a nonzero command (a
     robot boxed in on all sides gets the least-violating one, which may be zero)."""
-    offsets = np.ascontiguousarray(offsets, dtype=float).reshape(-1, 2)
-    if not len(offsets):
-        return True
-    return _stays_parked(offsets, np.ascontiguousarray(radii, dtype=float),
-                         float(own_radius), params.avoid_buffer + params.yield_margin,
-                         params.avoid_rate)
+    offsets = np.asarray(offsets, dtype=float).reshape(-1, 2)
+    return stays_parked_each(offsets, np.asarray(radii, dtype=float).reshape(-1), [0],
+                             [len(offsets)], [own_radius], [params])[0]
 
 
-@kernel(np.array([[1.0, 0.2], [0.9, -0.4]]), np.array([0.4, 0.5]), 0.4, 0.3, 1.0)
-def _stays_parked(offsets: np.ndarray, radii: np.ndarray, own_radius: float,
-                  buffer: float, avoid_rate: float) -> bool:
-    """``stays_parked``'s test, with ``_avoid``'s arithmetic (``_gap_bound``): at v = 0
-    a constraint binds where b_j < 0, among the neighbours ``_avoid`` keeps (d_j > 0)."""
-    for j in range(offsets.shape[0]):
-        d = math.hypot(offsets[j, 0], offsets[j, 1])
-        if d > 1e-9 and _gap_bound(d, radii[j], own_radius, buffer, avoid_rate) < 0.0:
-            return False
-    return True
+def stays_parked_each(offsets: np.ndarray, radii: np.ndarray, starts: Sequence[int],
+                      ends: Sequence[int], own_radii: Sequence[float],
+                      params: Sequence[SetpointParams]) -> list[bool]:
+    """``stays_parked`` for many robots in one call: robot k saw the rows
+    ``starts[k]:ends[k]`` of ``offsets`` (M, 2) and ``radii`` (M,), has coverage radius
+    ``own_radii[k]`` and filter parameters ``params[k]``."""
+    return _stays_parked(np.ascontiguousarray(offsets, dtype=float),
+                         np.ascontiguousarray(radii, dtype=float),
+                         np.array(starts, dtype=np.int64), np.array(ends, dtype=np.int64),
+                         np.array(own_radii, dtype=float),
+                         np.array([p.avoid_buffer + p.yield_margin for p in params]),
+                         np.array([p.avoid_rate for p in params])).tolist()
+
+
+@kernel(np.array([[1.0, 0.2], [0.9, -0.4]]), np.array([0.4, 0.5]), np.array([0, 1]),
+        np.array([1, 2]), np.array([0.4, 0.3]), np.array([0.3, 0.3]), np.array([1.0, 1.0]))
+def _stays_parked(offsets: np.ndarray, radii: np.ndarray, starts: np.ndarray,
+                  ends: np.ndarray, own_radii: np.ndarray, buffers: np.ndarray,
+                  rates: np.ndarray) -> np.ndarray:
+    """``stays_parked_each``'s test, with ``_avoid``'s arithmetic (``_gap_bound``): at
+    v = 0 a constraint binds where b_j < 0, among the neighbours ``_avoid`` keeps
+    (d_j > 0); the parked margin is ``buffers[k]`` (avoid_buffer + yield_margin)."""
+    out = np.ones(starts.shape[0], dtype=np.bool_)
+    for k in range(starts.shape[0]):
+        for j in range(starts[k], ends[k]):
+            d = math.hypot(offsets[j, 0], offsets[j, 1])
+            if d > 1e-9 and _gap_bound(d, radii[j], own_radii[k], buffers[k],
+                                       rates[k]) < 0.0:
+                out[k] = False
+                break
+    return out
 
 
 @helper

@@ -339,8 +339,11 @@ class HeadlessSwarm:
         for i, ranges in readings.ranges or ():
             brains[i].on_ranges(t, ranges)
         if readings.proximity is not None:
-            for i in readings.living:
-                brains[i].on_proximity(t, *readings.proximity.of(i))
+            # Every living brain's scan in one call (AgentBrain.take_proximity).
+            scan, living = readings.proximity, readings.living
+            starts, ends = scan.rows_of(living)
+            AgentBrain.take_proximity(t, [brains[i] for i in living], scan.offsets,
+                                      scan.radii, starts, ends)
         for i, fix, std in readings.gps or ():
             brains[i].on_gps(t, fix, std)
 

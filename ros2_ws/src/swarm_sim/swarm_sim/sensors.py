@@ -78,8 +78,14 @@ class ProximityScan:
 
     def of(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """(offsets (k, 2), radii (k,)) seen by robot index ``i``."""
-        lo, hi = np.searchsorted(self.observers, [i, i + 1])
+        (lo,), (hi,) = self.rows_of([i])
         return self.offsets[lo:hi], self.radii[lo:hi]
+
+    def rows_of(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(starts, ends): robot ``indices[k]`` saw the rows ``starts[k]:ends[k]``."""
+        indices = np.asarray(indices)
+        return (np.searchsorted(self.observers, indices),
+                np.searchsorted(self.observers, indices + 1))
 
 
 class ProximityModel:
