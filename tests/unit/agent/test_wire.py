@@ -8,8 +8,11 @@ TTL-0 frames in ``stats`` and drops them, never raising into the agent loop.
 
 from __future__ import annotations
 
+import struct
+
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+import numpy as np
 import pytest
 
 from swarm_agent import wire
@@ -169,3 +172,23 @@ def test_router_never_raises_on_arbitrary_frames(source, dest, kind, ttl, payloa
     out = router.on_packet(11.0, Packet(3, BROADCAST, Kind.HEARTBEAT, 1, 1,
                                         wire.encode_heartbeat(4, b'info')))
     assert out.delivered[-1].payload == b'info' and router.next_hop(3) == 3
+
+
+@given(st.integers(0, 2 ** 32 - 1), adverts)
+def test_adverts_from_columns_are_the_documented_layout(seq, advs):
+    """A route table's columns encode to the module's layout, entry by entry as struct
+    packs it: ``u32 sender_sequence, u8 count`` + count x ``(u16, u8, u32)``."""
+    columns = [np.array(c, dtype=np.int64) for c in zip(*advs)] if advs else \
+        [np.zeros(0, np.int64)] * 3
+    frames = wire.encode_advert_columns(seq, *columns)
+    expected = [struct.pack('<IB', seq, len(advs[k:k + wire.ADV_PER_FRAME])) + b''.join(
+        struct.pack('<HBI', *a) for a in advs[k:k + wire.ADV_PER_FRAME])
+        for k in range(0, max(len(advs), 1), wire.ADV_PER_FRAME)]
+    assert frames == expected == wire.encode_adverts(seq, advs)
+
+
+def test_adverts_outside_the_wire_ranges_are_refused():
+    with pytest.raises(WireError, match='16-bit'):
+        wire.encode_adverts(0, [Advert(0x10000, 1, 2)])
+    with pytest.raises(WireError, match='16-bit'):
+        wire.encode_adverts(0, [Advert(3, -1, 2)])

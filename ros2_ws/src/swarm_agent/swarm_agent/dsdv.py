@@ -55,8 +55,8 @@ from swarm_agent.route_table import (
     SEQUENCE_STEP,
 )
 from swarm_agent.route_table import seq_newer as seq_newer  # this module's API as well
-from swarm_agent.wire import Advert, WireError
 from swarm_agent.wire import INFINITE_HOPS as INFINITE_HOPS  # this module's API as well
+from swarm_agent.wire import WireError
 from swarm_common.parameters import tunable
 
 LOG = logging.getLogger(__name__)
@@ -232,8 +232,11 @@ class DsdvRouter:
         if t >= self._next_full:
             self._next_full = t + self.config.full_dump_period_s
             self.sequence = _seq_add(self.sequence, SEQUENCE_STEP)
-            adverts = [Advert(self.id, 0, self.sequence), *self.route_table.adverts()]
-            for frame in wire.encode_adverts(self.sequence, adverts):
+            ids, hops, seqs = self.route_table.advert_columns()
+            # Its own route first: itself at 0 hops with its new number.
+            for frame in wire.encode_advert_columns(
+                    self.sequence, np.concatenate(([self.id], ids)),
+                    np.concatenate(([0], hops)), np.concatenate(([self.sequence], seqs))):
                 out.append(self._packet(BROADCAST, Kind.DSDV_FULL, frame, ttl=1))
             self.route_table.clear_changed()
             self._dirty = False
@@ -241,8 +244,8 @@ class DsdvRouter:
         elif (self._dirty
               and t - self._last_incremental >= self.config.incremental_min_interval_s
               and self.route_table.any_changed()):
-            adverts = self.route_table.adverts(changed_only=True)
-            for frame in wire.encode_adverts(self.sequence, adverts):
+            for frame in wire.encode_advert_columns(
+                    self.sequence, *self.route_table.advert_columns(changed_only=True)):
                 out.append(self._packet(BROADCAST, Kind.DSDV_INCREMENTAL, frame, ttl=1))
             self.route_table.clear_changed()
             self._dirty = False

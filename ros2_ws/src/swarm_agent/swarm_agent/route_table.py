@@ -108,7 +108,7 @@ class RouteTable:
         self.store.cells[self.row, c] = (entry.sequence_number & SEQUENCE_MASK,
                                          entry.hop_count, entry.next_hop, int(entry.changed))
 
-    def _by_destination(self, changed_only: bool = False) -> tuple[list[int], np.ndarray]:
+    def _by_destination(self, changed_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """The destinations with a route (those changed only, if asked) in order, and
         their cells."""
         cells = self._cells()
@@ -117,13 +117,13 @@ class RouteTable:
             keep &= cells[:, CHANGED] != 0
         cols = np.flatnonzero(keep)
         cols = cols[np.argsort(self.store.ids[cols])]
-        return self.store.ids[cols].tolist(), cells[cols]
+        return self.store.ids[cols], cells[cols]
 
     def entries(self) -> list[RouteEntry]:
         """Every route, sorted by destination (copies)."""
         ids, cells = self._by_destination()
         return [RouteEntry(d, nxt, hops, seq, bool(changed))
-                for d, (seq, hops, nxt, changed) in zip(ids, cells.tolist())]
+                for d, (seq, hops, nxt, changed) in zip(ids.tolist(), cells.tolist())]
 
     def next_hop(self, destination: int) -> int | None:
         c = self.store.column[destination] if 0 <= destination < ADDRESSES else -1
@@ -146,9 +146,15 @@ class RouteTable:
     def adverts(self, changed_only: bool = False) -> list[Advert]:
         """The routes as adverts (destination, hops, sequence number), sorted by
         destination: all of them (a full dump) or those changed (an incremental one)."""
+        return list(map(Advert._make, zip(*(c.tolist() for c in self.advert_columns(
+            changed_only)))))
+
+    def advert_columns(self, changed_only: bool = False) -> tuple[
+            np.ndarray, np.ndarray, np.ndarray]:
+        """``adverts`` as three arrays (destinations, hops, sequence numbers), for
+        ``wire.encode_advert_columns``."""
         ids, cells = self._by_destination(changed_only)
-        return list(map(Advert._make, zip(ids, cells[:, HOPS].tolist(),
-                                          cells[:, SEQ].tolist())))
+        return ids, cells[:, HOPS], cells[:, SEQ]
 
     def break_link(self, neighbour: int) -> bool:
         """Fig. 3.9: every finite route through ``neighbour`` gets hops = inf and the next

@@ -26,10 +26,12 @@ bytes), and they only read it.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 import functools
 import struct
 from typing import NamedTuple, TypeVar
+
+import numpy as np
 
 from swarm_agent.packet import MAX_BODY
 
@@ -37,6 +39,8 @@ INFINITE_HOPS = 255
 _HB = struct.Struct('<I')
 _ADV_HEAD = struct.Struct('<IB')
 _ADV_ENTRY = struct.Struct('<HBI')
+# The same entry as a numpy record (packed, as struct's '<'), for a route table's columns.
+_ADV_ARRAY = np.dtype([('destination', '<u2'), ('hops', 'u1'), ('sequence', '<u4')])
 _ROUTED = struct.Struct('<HH')
 _FRAG = struct.Struct('<BHBB')
 ADV_PER_FRAME = (MAX_BODY - _ADV_HEAD.size) // _ADV_ENTRY.size
@@ -100,15 +104,30 @@ def decode_heartbeat(data: bytes) -> tuple[int, bytes]:
     return _HB.unpack_from(data)[0], bytes(data[_HB.size:])
 
 
-def encode_adverts(sender_sequence: int, adverts: list[Advert]) -> list[bytes]:
+def encode_adverts(sender_sequence: int, adverts: Sequence[Advert]) -> list[bytes]:
     """Route adverts split into frames of at most ADV_PER_FRAME entries."""
-    frames = []
-    for k in range(0, max(len(adverts), 1), ADV_PER_FRAME):
-        part = adverts[k:k + ADV_PER_FRAME]
-        frames.append(_ADV_HEAD.pack(sender_sequence & 0xFFFFFFFF, len(part)) + b''.join(
-            _ADV_ENTRY.pack(a.destination, min(a.hops, INFINITE_HOPS), a.sequence & 0xFFFFFFFF)
-            for a in part))
-    return frames
+    columns = np.array(adverts, dtype=np.int64).reshape(-1, 3)
+    return encode_advert_columns(sender_sequence, columns[:, 0], columns[:, 1],
+                                 columns[:, 2])
+
+
+def encode_advert_columns(sender_sequence: int, destinations: np.ndarray, hops: np.ndarray,
+                          sequences: np.ndarray) -> list[bytes]:
+    """``encode_adverts`` of the adverts given as three integer arrays (a route table's
+    columns: no tuple per advert). Hops saturate at INFINITE_HOPS and sequence numbers
+    wrap to 32 bits; a destination outside 16 bits or negative hops raise WireError."""
+    n = len(destinations)
+    if n and (destinations.min() < 0 or destinations.max() > 0xFFFF or hops.min() < 0):
+        raise WireError('advert destinations must be 16-bit addresses and hops not '
+                        'negative')
+    entries = np.empty(n, _ADV_ARRAY)
+    entries['destination'] = destinations
+    entries['hops'] = np.minimum(hops, INFINITE_HOPS)
+    entries['sequence'] = sequences & 0xFFFFFFFF
+    body, size = entries.tobytes(), _ADV_ENTRY.size
+    return [_ADV_HEAD.pack(sender_sequence & 0xFFFFFFFF, min(ADV_PER_FRAME, n - k))
+            + body[k * size:(k + ADV_PER_FRAME) * size]
+            for k in range(0, max(n, 1), ADV_PER_FRAME)]
 
 
 @last_result
