@@ -83,3 +83,26 @@ def test_a_neighbours_dump_tells_its_neighbour_set():
     assert dump((3, 0, 14), (6, 255, 9)) == {7}                   # broken: gone
     # Advertised both ways in one frame (no router sends that): a neighbour.
     assert dump((3, 0, 16), (8, 2, 4), (8, 1, 4)) == {7, 8}
+
+
+def test_receivers_that_knew_different_neighbour_sets_each_learn_their_own():
+    """One dump heard by routers that knew the sender's neighbours differently (the
+    receivers of a frame share one result per set they knew): each ends with what it knew
+    plus the one-hop adverts less the others; a receiver whose knowledge did not change
+    keeps its relay decisions, one whose knowledge changed renews them."""
+    from swarm_agent.wire import Advert, encode_adverts
+
+    routers = [DsdvRouter(i) for i in (1, 2, 4, 5)]
+    beat = DsdvRouter(3).tick(0.0)[0]                 # 3 is everyone's neighbour first
+    hear(0.5, beat, routers)
+    knew = [frozenset({5, 6}), frozenset({5, 6}), frozenset({6, 8, 9}), None]
+    for router, known in zip(routers, knew):
+        if known is not None:
+            router.two_hop[3] = known
+        router._silent_after[7] = True               # a relay decision held
+    frame = encode_adverts(10, [Advert(3, 0, 10), Advert(5, 1, 4), Advert(6, 1, 8),
+                                Advert(9, 2, 2)])[0]
+    hear(1.0, Packet(3, BROADCAST, int(Kind.DSDV_FULL), 1, 1, frame), routers)
+    assert [r.two_hop[3] for r in routers] == [{5, 6}, {5, 6}, {5, 6, 8}, {5, 6}]
+    assert routers[0].two_hop[3] is knew[0]          # unchanged: the same set
+    assert [bool(r._silent_after) for r in routers] == [True, True, False, False]

@@ -120,7 +120,9 @@ class DsdvRouter:
         # Neighbours heard, with their heartbeat counts: the store's, row for row.
         self.neighbour_table = NeighbourTable(self.route_table.store.neighbours,
                                               self.route_table.row)
-        self.two_hop: dict[int, set[int]] = {}  # neighbour -> its advertised neighbours
+        # neighbour -> its advertised neighbours (immutable: receivers of one dump that
+        # knew the same set share what it becomes, dsdv_receive._learn_neighbourhood)
+        self.two_hop: dict[int, frozenset[int]] = {}
         self._copies = self.config.flood_extra_copies  # k, renewed at every heartbeat sent
         # Flood relay decisions depend only on the two-hop view: kept until it changes.
         self._silent_after: dict[int, bool] = {}  # previous hop -> stay silent?
@@ -288,16 +290,6 @@ class DsdvRouter:
         if self._next_expiry == math.inf:   # it is the only neighbour
             self._next_expiry = t + self.config.neighbour_timeout_s
             self._wake = min(self._wake, self._next_expiry)
-
-    def _learn_neighbourhood(self, neighbour: int, ones: frozenset[int],
-                             others: frozenset[int]) -> None:
-        """A neighbour's one-hop adverts are its neighbour set (for flood pruning):
-        ``ones`` it advertises at one hop, ``others`` at more (``_dump_terms``)."""
-        known = self.two_hop.setdefault(neighbour, set())
-        if not ones <= known or not known.isdisjoint(others):
-            known |= ones
-            known -= others
-            self._view_changed()
 
     def _view_changed(self) -> None:
         self._silent_after.clear()

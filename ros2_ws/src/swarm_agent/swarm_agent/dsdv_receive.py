@@ -101,8 +101,7 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
             rows, ones, others = _dump_terms(source, adverts)
             groups = _groups([r for _, r in taking])
             _neighbour_heard(groups, t, source, False)
-            for _, r in taking:
-                r._learn_neighbourhood(source, ones, others)
+            _learn_neighbourhood([r for _, r in taking], source, ones, others)
             _link_added(groups, source, None, seq)
             _merged(groups, source, rows)
         elif kind is _DATA:
@@ -229,6 +228,33 @@ def _merged(groups: list[_Group], neighbour: int, adverts: np.ndarray) -> None:
             routers[i]._dirty = True
         for i, n in zip(damping.tolist(), damped.tolist()):
             routers[i]._count('damped', n)
+
+
+_NO_NEIGHBOURS: frozenset[int] = frozenset()
+
+
+def _learn_neighbourhood(routers: Sequence[DsdvRouter], neighbour: int, ones: frozenset[int],
+                         others: frozenset[int]) -> None:
+    """A neighbour's one-hop adverts are its neighbour set (for flood pruning), learnt by
+    every receiver: ``ones`` it advertises at one hop are added to what the receiver
+    knows of it, ``others`` (at more hops) taken out; a receiver whose knowledge changed
+    renews its relay decisions. Each receiver's knowledge is an immutable set, so the
+    receivers that knew the same set (most of them) share one result, computed once
+    per frame."""
+    # id of a known set -> (the set, kept alive so its id is not reused; what it becomes)
+    outcome: dict[int, tuple[frozenset[int], frozenset[int]]] = {}
+    for r in routers:
+        known = r.two_hop.get(neighbour)
+        if known is None:
+            known = r.two_hop[neighbour] = _NO_NEIGHBOURS
+        _, learnt = outcome.get(id(known)) or (None, None)
+        if learnt is None:
+            learnt = (known if ones <= known and known.isdisjoint(others)
+                      else frozenset((known | ones) - others))
+            outcome[id(known)] = (known, learnt)
+        if learnt is not known:
+            r.two_hop[neighbour] = learnt
+            r._view_changed()
 
 
 def _dump_terms(neighbour: int, adverts: tuple[Advert, ...]) -> tuple[
