@@ -11,7 +11,7 @@ new array after ``add_row``, ``column_of`` and ``columns``: read it after them.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Hashable, Sequence
 
 import numpy as np
 
@@ -28,6 +28,13 @@ class AddressGrid:
         self.width = 0                              # columns in use
         self.cells = self._new(1, 8)
         self.height = 0                             # rows in use
+        self._groups: dict[Hashable, object] = {}
+
+    def group(self, settings: Hashable) -> object:
+        """A token for this grid's receivers with these ``settings`` (those a kernel takes
+        as scalars): the receivers of a frame that hold one token are updated in one
+        call, which an identity check per receiver tells (``open_all``, ``hear``)."""
+        return self._groups.setdefault(settings, object())
 
     def add_row(self) -> int:
         """A new receiver, every cell empty; returns its row."""

@@ -44,7 +44,7 @@ import math
 import numpy as np
 
 from swarm_agent import flood_relay, wire
-from swarm_agent.dsdv_receive import Delivered, hear, RouterOutput
+from swarm_agent.dsdv_receive import Delivered, hear, RouterOutput, scalar_settings
 from swarm_agent.neighbour_table import NeighbourTable
 from swarm_agent.packet import BROADCAST, Kind, Packet
 from swarm_agent.route_table import (
@@ -115,6 +115,8 @@ class DsdvRouter:
         self.id = int(node_id)
         self.config = config or DsdvConfig()
         self.route_table = RouteTable(store, self.id)
+        # Receivers of one frame holding this token share one kernel call (hear).
+        self._group = self.route_table.store.group(scalar_settings(self.config))
         self._row = np.array([self.route_table.row], dtype=np.int64)   # its rows, alone
         self.sequence = boot_sequence(boot_time_s)
         # Neighbours heard, with their heartbeat counts: the store's, row for row.

@@ -181,21 +181,22 @@ def _groups(routers: list[DsdvRouter]) -> list[_Group]:
     store and settings (the evaluator's, a composed container's), once per frame."""
     if len(routers) == 1:   # a node's router, the mission's: one frame at a time
         return [_Group(routers, routers[0].route_table.store, routers[0]._row)]
-    store, key = routers[0].route_table.store, _scalars(routers[0].config)
-    if all(r.route_table.store is store and _scalars(r.config) == key for r in routers):
+    token = routers[0]._group       # one store and the same scalar settings
+    if all(r._group is token for r in routers):
         split = [routers]
     else:
-        keyed: dict[tuple[int, float, float, int], list[DsdvRouter]] = {}
+        keyed: dict[object, list[DsdvRouter]] = {}
         for r in routers:
-            keyed.setdefault((id(r.route_table.store), *_scalars(r.config)), []).append(r)
+            keyed.setdefault(r._group, []).append(r)
         split = list(keyed.values())
     return [_Group(group, group[0].route_table.store,
                    np.array([r.route_table.row for r in group], dtype=np.int64))
             for group in split]
 
 
-def _scalars(config: DsdvConfig) -> tuple[float, float, int]:
-    """The settings the kernels take as scalars, for one group of receivers."""
+def scalar_settings(config: DsdvConfig) -> tuple[float, float, int]:
+    """The settings the kernels take as scalars, alike in one group of receivers (a
+    router's token in its store, ``AddressGrid.group``)."""
     return config.heartbeat_period_s, config.loss_memory, config.stale_generations
 
 

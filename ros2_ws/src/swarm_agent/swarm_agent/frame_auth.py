@@ -273,6 +273,7 @@ class FrameAuth:
         self.window = window
         self._size = np.uint64(window)
         self._full = np.uint64((1 << window) - 1)
+        self._group = self.store.group((self._verify, window))   # open_all's grouping
         self.stats: dict[str, int] = {}
 
     @property
@@ -308,13 +309,12 @@ def open_all(auths: Sequence[FrameAuth], packet: Packet) -> list[Packet | None]:
     first = auths[0]
     if len(auths) == 1:   # a node's own window, the mission's: one frame at a time
         groups = [[0]]
-    elif all(a._verify is first._verify and a.store is first.store and a._size == first._size
-           for a in auths):
+    elif all(a._group is first._group for a in auths):   # one store, keyring and window
         groups = [list(range(len(auths)))]
     else:
-        keyed: dict[tuple[int, int, int], list[int]] = {}
+        keyed: dict[object, list[int]] = {}
         for i, a in enumerate(auths):
-            keyed.setdefault((id(a._verify), id(a.store), a.window), []).append(i)
+            keyed.setdefault(a._group, []).append(i)
         groups = list(keyed.values())
     for group in groups:
         auth = auths[group[0]]
