@@ -41,7 +41,6 @@ force command; ``snapshot()`` the estimate, mode and assignment for introspectio
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 import logging
 import math
 import zlib
@@ -52,6 +51,7 @@ import shapely
 from swarm_agent.assignment import assign
 from swarm_agent.assignment import SHARED as SHARED_ASSIGNMENTS
 from swarm_agent.brain_config import BrainConfig
+from swarm_agent.brain_records import BrainOutput, Neighbour, Snapshot
 from swarm_agent.costs import class_costs, VisibilityGraph
 from swarm_agent.dsdv import Delivered, DsdvRouter
 from swarm_agent.forces import formation_force
@@ -93,43 +93,6 @@ def _next_tick(due: float, t: float, period: float) -> float:
 
 def _inside(shape: Shape, point: np.ndarray) -> bool:
     return bool(shapely.contains_xy(shape.region, float(point[0]), float(point[1])))
-
-
-@dataclass(frozen=True)
-class Neighbour:
-    """Last heartbeat information from a direct neighbour."""
-
-    info: NeighbourInfo
-    heard_at: float
-
-
-@dataclass(frozen=True)
-class BrainOutput:
-    """What one call of ``step`` produces (read-only: the arrays are the brain's own)."""
-
-    packets: list[Packet]
-    force: np.ndarray              # N, map frame (to the simulator)
-    velocity_setpoint: np.ndarray  # m/s, map frame (to hardware)
-
-
-@dataclass(frozen=True)
-class Snapshot:
-    """Introspection of the brain: estimate, mode and assignment (swarm_msgs/AgentState)."""
-
-    agent_id: int
-    agent_type: int
-    is_beacon: bool
-    mode: int
-    position: np.ndarray
-    velocity: np.ndarray
-    covariance: np.ndarray
-    goal_id: int                   # -1 when none
-    goal_version: int
-    assignment_round: int
-    assignment_digest: int
-    rows_used: int
-    settled: bool
-    localized: bool = False        # has had a trilateration fix of its own
 
 
 class AgentBrain:
