@@ -414,11 +414,15 @@ class AgentBrain:
         return not self.config.is_beacon and self.localizer.is_anchor(
             parked, self.config.stand_still_after_s)
 
-    def _fresh_neighbours(self, t: float) -> dict[int, NeighbourInfo]:
+    def _drop_stale(self, t: float) -> None:
+        """Forget the neighbours not heard for ``neighbour_stale_s``."""
         stale = [k for k, n in self.neighbours.items()
                  if t - n.heard_at > self.config.neighbour_stale_s]
         for k in stale:
             del self.neighbours[k]
+
+    def _fresh_neighbours(self, t: float) -> dict[int, NeighbourInfo]:
+        self._drop_stale(t)
         return {k: n.info for k, n in self.neighbours.items()}
 
     def _localize(self, t: float) -> None:
@@ -426,7 +430,7 @@ class AgentBrain:
         against secondary anchors when this agent is not one (localization.py)."""
         beacons, anchors = [], []
         if t - self._ranges_at <= self.config.range_stale_s:
-            self._fresh_neighbours(t)
+            self._drop_stale(t)
             beacons, anchors = anchor_ranges(
                 self._ranges, self.neighbours, self._ranges_at,
                 self.config.localization.beacon_variance_inflation,
@@ -442,7 +446,7 @@ class AgentBrain:
         """The 2 Hz loop: cost report, assignment, setpoint (3.2.2.2, 3.2.4)."""
         self._avoid_due = True
         self._goal_distance = math.inf
-        self._fresh_neighbours(t)
+        self._drop_stale(t)
         if (self._parked_since is not None
                 and t - self._parked_since >= self.config.stand_still_after_s):
             self.localizer.stand_still()
