@@ -3,7 +3,8 @@
 - LQR of eqs. 3.108-3.111 per robot type of Table 4.1: gains against the closed form,
   stable closed loop, step response (Fig. 3.34), tracking on the friction model.
 - Point mass with Coulomb (mu_1 m g) and fluid (mu_2 v) friction (dynamics.py): terminal
-  velocity, time constant, break-away force and stopping time from its own equations.
+  velocity, time constant, break-away force and stopping time from its own equations,
+  compiled and as the kernel's Python source.
 - Velocity setpoint generator (thesis 3.2.4, Fig. 3.32): saturation at 0.5 m/s.
 - Artificial forces (thesis 3.2.1.1, eqs. 3.80-3.93): outside agents are pulled in,
   inside agents are pushed apart and away from the boundary.
@@ -102,6 +103,7 @@ def test_step_response_reaches_the_setpoint_with_small_overshoot(type_id):
     assert 1.5 < w < 3.0
 
 
+@pytest.mark.usefixtures('kernels')
 @pytest.mark.parametrize('type_id', TYPE_IDS)
 def test_velocity_loop_tracks_on_the_friction_model(type_id):
     """The integral state cancels dry friction: no steady-state error, small overshoot."""
@@ -136,6 +138,7 @@ def run_force(robots: list[RobotType], force: np.ndarray, seconds: float,
     return sim, np.array(speeds)
 
 
+@pytest.mark.usefixtures('kernels')
 def test_constant_force_reaches_the_analytic_terminal_velocity():
     """m dv/dt = F - mu_2 v - mu_1 m g  =>  v_inf = (F - mu_1 m g) / mu_2, tau = m / mu_2."""
     robots = [TYPES[t] for t in TYPE_IDS]
@@ -154,6 +157,7 @@ def test_constant_force_reaches_the_analytic_terminal_velocity():
     np.testing.assert_allclose(at_tau, v_inf * (1 - math.exp(-1)), rtol=5e-3)
 
 
+@pytest.mark.usefixtures('kernels')
 def test_force_below_coulomb_friction_does_not_move_a_robot_at_rest():
     robots = [TYPES[t] for t in TYPE_IDS]
     break_away = np.array([r.dry_friction * r.mass * GRAVITY for r in robots])
@@ -165,6 +169,7 @@ def test_force_below_coulomb_friction_does_not_move_a_robot_at_rest():
     assert (speeds[-1] > 0.0).all()
 
 
+@pytest.mark.usefixtures('kernels')
 def test_sliding_robot_stops_in_the_analytic_time():
     """Unforced: m dv/dt = -mu_2 v - mu_1 m g  =>  t_stop = (m / mu_2) ln(1 + mu_2 v0 / F_c)."""
     robots = [TYPES[t] for t in TYPE_IDS]
@@ -578,3 +583,25 @@ def test_control_yaml_states_the_setpoint_and_forces_defaults():
         assert set(data[section]) <= set(defaults), f'{section}: unknown keys'
         for key, value in data[section].items():
             assert defaults[key] == pytest.approx(value), f'{section}.{key}'
+
+
+def test_the_compiled_point_masses_step_as_their_source_to_the_bit():
+    """The point-mass kernel compiled gives the very numbers of its Python source (one
+    step of 50 robots with random states and forces, some of them stopping)."""
+    from swarm_agent.dynamics import _step
+    from swarm_common import jit
+    rng = np.random.default_rng(3)
+    robots = [TYPES[t] for t in rng.choice(TYPE_IDS, 50)]
+    sim = PointMassSwarm(robots, rng.uniform(-20, 20, (50, 2)),
+                         rng.normal(0.0, 0.3, (50, 2)) * (rng.random((50, 1)) < 0.8))
+    forces = rng.normal(0.0, 8.0, (50, 2))
+    args = (sim.positions, sim.velocities, forces, sim.mass, sim.fluid, sim.dry, GRAVITY, 0.02)
+    compiled = _step(*args)
+    jit.use_python(True)
+    try:
+        source = _step(*args)
+    finally:
+        jit.use_python(False)
+    for a, b in zip(compiled, source):
+        np.testing.assert_array_equal(a, b)
+    assert (np.hypot(*compiled[1].T) == 0.0).any()     # some robots stopped by dry friction

@@ -10,9 +10,11 @@ sliding robot stops exactly instead of chattering around zero velocity.
 from __future__ import annotations
 
 from collections.abc import Sequence
+import math
 
 import numpy as np
 
+from swarm_common.jit import kernel
 from swarm_common.robot_types import GRAVITY, RobotType
 
 
@@ -33,21 +35,40 @@ class PointMassSwarm:
     def step(self, dt: float, forces) -> None:
         """Advance by ``dt`` under the applied forces (N, map frame), shape (N, 2)."""
         forces = np.nan_to_num(np.asarray(forces, dtype=float).reshape(-1, 2))
-        v0 = self.velocities
-        # Applied force, then Coulomb dry friction as an impulse bounded by mu_1 g dt,
-        # then fluid friction implicitly (unconditionally stable). Dry friction acts
-        # before the implicit division so that a constant force F gives exactly the
-        # continuous terminal speed (F - mu_1 m g) / mu_2.
-        v = v0 + dt * forces / self.mass[:, None]
-        speed = np.linalg.norm(v, axis=1)
-        dv_max = self.dry * self.gravity * dt
-        stopping = speed <= dv_max
-        scale = np.where(stopping, 0.0, 1.0 - dv_max / np.maximum(speed, 1e-12))
-        v = v * scale[:, None] / (1.0 + dt * self.fluid / self.mass)[:, None]
-        self._accel = (v - v0) / dt
-        self.velocities = v
-        self.positions = self.positions + v * dt
+        self.positions, self.velocities, self._accel = _step(
+            self.positions, self.velocities, forces, self.mass, self.fluid, self.dry,
+            float(self.gravity), float(dt))
 
     def accelerations(self) -> np.ndarray:
         """True accelerations of the last step (what an ideal accelerometer measures)."""
         return self._accel.copy()
+
+
+@kernel(np.zeros((2, 2)), np.zeros((2, 2)), np.ones((2, 2)), np.ones(2), np.ones(2),
+        np.full(2, 0.1), 9.81, 0.02)
+def _step(positions: np.ndarray, velocities: np.ndarray, forces: np.ndarray,
+          mass: np.ndarray, fluid: np.ndarray, dry: np.ndarray, gravity: float,
+          dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One step of every point mass: (positions, velocities, accelerations) after it.
+
+    Applied force, then Coulomb dry friction as an impulse bounded by mu_1 g dt, then
+    fluid friction implicitly (unconditionally stable). Dry friction acts before the
+    implicit division so that a constant force F gives exactly the continuous terminal
+    speed (F - mu_1 m g) / mu_2.
+    """
+    n = positions.shape[0]
+    new_p, new_v, accel = np.empty((n, 2)), np.empty((n, 2)), np.empty((n, 2))
+    for i in range(n):
+        vx = velocities[i, 0] + dt * forces[i, 0] / mass[i]
+        vy = velocities[i, 1] + dt * forces[i, 1] / mass[i]
+        speed = math.sqrt(vx * vx + vy * vy)
+        dv_max = dry[i] * gravity * dt
+        scale = 0.0 if speed <= dv_max else 1.0 - dv_max / max(speed, 1e-12)
+        damp = 1.0 + dt * fluid[i] / mass[i]
+        vx, vy = vx * scale / damp, vy * scale / damp
+        accel[i, 0] = (vx - velocities[i, 0]) / dt
+        accel[i, 1] = (vy - velocities[i, 1]) / dt
+        new_v[i, 0], new_v[i, 1] = vx, vy
+        new_p[i, 0] = positions[i, 0] + vx * dt
+        new_p[i, 1] = positions[i, 1] + vy * dt
+    return new_p, new_v, accel
