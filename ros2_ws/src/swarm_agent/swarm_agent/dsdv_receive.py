@@ -93,8 +93,11 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
             heartbeat = RouterOutput(delivered=[Delivered(source, Kind.HEARTBEAT, info)])
             groups = _groups([r for _, r in taking])
             _neighbour_heard(groups, t, source, True)
-            for i, _ in taking:
-                outs[i] = heartbeat
+            if len(taking) == len(routers):
+                outs = [heartbeat] * len(routers)
+            else:
+                for i, _ in taking:
+                    outs[i] = heartbeat
             _link_added(groups, source, seq)
         elif kind is _FULL or kind is _INCREMENTAL:
             seq, adverts = wire.decode_adverts(packet.payload)

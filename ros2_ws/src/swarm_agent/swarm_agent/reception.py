@@ -25,10 +25,14 @@ if TYPE_CHECKING:
 def receive(t: float, packet: Packet, brains: Sequence[AgentBrain]) -> None:
     """``packet``, heard at ``t`` by each of ``brains`` (distinct brains)."""
     auths = [brain.auth for brain in brains]
-    if any(auth is None for auth in auths):   # unauthenticated brains (comparisons)
+    if None in auths:   # unauthenticated brains (comparisons)
         frames = [packet if auth is None else auth.open(packet) for auth in auths]
     else:
         frames = open_all(auths, packet)
+    first = frames[0]
+    if first is not None and frames.count(first) == len(frames):   # (identity first)
+        _route(t, first, brains)       # every receiver opened it alike: the common case
+        return
     opened: Packet | None = None
     group: list[AgentBrain] = []       # the receivers that opened it to ``opened``
     others: list[tuple[AgentBrain, Packet]] = []
@@ -49,6 +53,12 @@ def receive(t: float, packet: Packet, brains: Sequence[AgentBrain]) -> None:
 
 def _route(t: float, frame: Packet, brains: Sequence[AgentBrain]) -> None:
     outs = hear(t, frame, [brain.router for brain in brains])
+    first = outs[0]
+    if not first.packets and outs.count(first) == len(outs):   # (identity first)
+        # One output for all (a heartbeat's, a dump's nothing): taken once by all.
+        if first.delivered:
+            brains[0].take_delivered(t, brains, first.delivered)
+        return
     # A router output shared by several receivers (a heartbeat's) holds payloads alike
     # for all of them: consumed once for the run of brains that got it.
     shared: RouterOutput | None = None
