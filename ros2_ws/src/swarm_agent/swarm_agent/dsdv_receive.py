@@ -70,10 +70,10 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
                     and destination != BROADCAST], 'not_for_me')
     if not taking:
         return outs
+    takers = routers if len(taking) == len(routers) else [r for _, r in taking]
     kind = _KINDS.get(packet.kind)   # (Kind(...) raising would be 2 % of a composed swarm)
     if packet.ttl <= 0 or kind is None:   # swarm_msgs/RadioPacket: ttl 0 is dropped
-        _count_all([r for _, r in taking],
-                   'dropped_ttl' if packet.ttl <= 0 else 'rejected_unknown_kind')
+        _count_all(takers, 'dropped_ttl' if packet.ttl <= 0 else 'rejected_unknown_kind')
         return outs
     try:
         if kind is _FLOOD:
@@ -91,7 +91,7 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
         elif kind is _HEARTBEAT:
             seq, info = wire.decode_heartbeat(packet.payload)
             heartbeat = RouterOutput(delivered=[Delivered(source, Kind.HEARTBEAT, info)])
-            groups = _groups([r for _, r in taking])
+            groups = _groups(takers)
             _neighbour_heard(groups, t, source, True)
             if len(taking) == len(routers):
                 outs = [heartbeat] * len(routers)
@@ -102,9 +102,9 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
         elif kind is _FULL or kind is _INCREMENTAL:
             seq, adverts = wire.decode_adverts(packet.payload)
             rows, ones, others = _dump_terms(source, adverts)
-            groups = _groups([r for _, r in taking])
+            groups = _groups(takers)
             _neighbour_heard(groups, t, source, False)
-            _learn_neighbourhood([r for _, r in taking], source, ones, others)
+            _learn_neighbourhood(takers, source, ones, others)
             _link_added(groups, source, None, seq)
             _merged(groups, source, rows)
         elif kind is _DATA:
