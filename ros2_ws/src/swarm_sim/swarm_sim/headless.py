@@ -192,6 +192,7 @@ class HeadlessSwarm:
         # Every brain's route table and replay windows: one call per frame heard.
         self._routes, self._windows = RouteStore(), ReplayStore()
         self.brains: list[AgentBrain | None] = [self._new_brain(r, 0.0) for r in fleet]
+        self._by_id = dict(zip(self.ids, self.brains))   # radio address -> brain (or None)
         self.mission = Mission(
             MissionConfig(method=scenario.method,
                           seed=scenario.seed if scenario.partition_seed is None
@@ -220,7 +221,7 @@ class HeadlessSwarm:
             i = self.index.get(agent)
             if i is not None and self.world.remove(i):
                 _add_counts(self.rejected, self.brains[i].auth_stats)
-                self.brains[i] = None
+                self.brains[i] = self._by_id[agent] = None
                 self.mission.events.append(f't={t:.1f} s: agent {agent} removed')
 
     # ------------------------------------------------------------------ restarts
@@ -259,7 +260,7 @@ class HeadlessSwarm:
             if self.brains[i] is None:
                 continue
             _add_counts(self.rejected, self.brains[i].auth_stats)
-            brain = self.brains[i] = self._new_brain(
+            brain = self.brains[i] = self._by_id[agent] = self._new_brain(
                 self.fleet[i], t if boot_time_s is None else boot_time_s, t)
             if self.mission.shape is not None:
                 brain.set_shape(self.mission.shape, self.mission.shape_version)
@@ -327,11 +328,14 @@ class HeadlessSwarm:
 
     def _feed(self, readings: Readings) -> None:
         """The world's readings to the living brains: radio, IMU, ranges, proximity, GPS."""
-        brains, index = self.brains, self.index
+        brains, brain_of = self.brains, self._by_id.__getitem__
         for t, packet, receivers in readings.rx or ():
             # One transmission, all its receivers in one call (reception.receive).
-            heard = [brains[index[receiver]] for receiver in receivers]
-            receive(t, packet, [b for b in heard if b is not None])
+            heard = list(map(brain_of, receivers))
+            if None in heard:    # removed while the frame was on the air
+                heard = [b for b in heard if b is not None]
+            if heard:
+                receive(t, packet, heard)
         t = readings.t
         if readings.imu is not None:
             for i in readings.living:
