@@ -6,8 +6,9 @@
 Both ways in the same run (``swarm_common.jit.use_python``), on the work of the 50-agent
 thesis trial: a collision filter with 1-7 neighbours, a 50-advert route dump, a
 heartbeat and a sealed frame heard by ``--receivers`` brains of one process (22 on
-average in that trial), a Kalman prediction and a zero-velocity update. Prints
-microseconds per call and the ratio.
+average in that trial), a Kalman prediction and a zero-velocity update, one step of 50
+point masses and the parked test of 50 robots' proximity scans. Prints microseconds per
+call and the ratio.
 """
 
 from __future__ import annotations
@@ -18,11 +19,14 @@ import time
 import numpy as np
 
 from swarm_agent import neighbour_table, route_table
+from swarm_agent.dynamics import PointMassSwarm
 from swarm_agent.frame_auth import FrameAuth, Keyring, open_all, ReplayStore
 from swarm_agent.kalman import KalmanFilter
 from swarm_agent.packet import BROADCAST, Kind, Packet
-from swarm_agent.setpoint import avoid_collisions, SetpointParams
+from swarm_agent.setpoint import avoid_collisions, SetpointParams, stays_parked_each
 from swarm_common import jit
+from swarm_common.robot_types import load_robot_types
+from swarm_sim.sensors import ProximityModel
 
 
 def _per_call_us(work, calls: int) -> float:
@@ -85,6 +89,22 @@ def cases(receivers: int) -> dict[str, tuple[str, object]]:
     def opened() -> None:
         open_all(auths, sender.seal(frame))
 
+    types = load_robot_types()
+    swarm = PointMassSwarm([types[1 + k % 3] for k in range(50)], rng.uniform(0, 50, (50, 2)))
+    forces = rng.normal(0.0, 5.0, (50, 2))
+
+    def point_masses() -> None:
+        swarm.step(0.02, forces)
+
+    positions = rng.uniform(0.0, 30.0, (50, 2))
+    scan = ProximityModel(rng).measure(positions, np.full(50, 0.3))
+    starts, ends = scan.rows_of(np.arange(50))
+    every = [params] * 50
+
+    def parked() -> None:
+        stays_parked_each(scan.offsets, scan.radii, starts.tolist(), ends.tolist(),
+                          [0.3] * 50, every)
+
     return {'collision filter (setpoint._avoid)': ('1-7 neighbours', avoid),
             'selection rules (route_table._merge)': (f'50 adverts x {receivers}', dump),
             'link addition (route_table._heard)': (f'heartbeat x {receivers}', heartbeat),
@@ -93,7 +113,9 @@ def cases(receivers: int) -> dict[str, tuple[str, object]]:
             'Kalman prediction (kalman._propagate)': ('6 states, 3 anchors', predict),
             'zero-velocity update (kalman._update)': ('6 states, 3 anchors', stand_still),
             'replay windows (frame_auth._accept)': (f'frame x {receivers}, tag once',
-                                                     opened)}
+                                                     opened),
+            'point masses (dynamics._step)': ('50 robots, one step', point_masses),
+            'parked scans (setpoint._stays_parked)': ("50 robots' scans", parked)}
 
 
 def main() -> int:
