@@ -58,3 +58,22 @@ def test_die_with_a_process_already_gone_dies_at_once():
             os._exit(0)
     _, status = os.waitpid(pid, 0)
     assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL
+
+
+def test_a_child_whose_parent_died_before_it_set_its_death_signal_dies_at_once():
+    """The launcher's children set their death signal after the fork; one forked just
+    before the launcher was SIGKILLed does so after the launcher is gone, when the
+    signal can never come. ``die_with_parent`` told the pid it was forked from kills
+    such a child at once (here: a child told a parent it does not have, as a reparented
+    child finds), and lets a child of that parent run."""
+    import functools
+    import sys
+
+    from swarm_agent.prefork import die_with_parent
+    run = [sys.executable, '-c', 'print("ran")']
+    orphan = subprocess.run(run, capture_output=True, text=True, timeout=30,
+                            preexec_fn=functools.partial(die_with_parent, 1))
+    assert orphan.returncode == -signal.SIGKILL and orphan.stdout == ''
+    child = subprocess.run(run, capture_output=True, text=True, timeout=30,
+                           preexec_fn=functools.partial(die_with_parent, os.getpid()))
+    assert child.returncode == 0 and child.stdout == 'ran\n'

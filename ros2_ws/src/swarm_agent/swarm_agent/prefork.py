@@ -35,9 +35,13 @@ PR_SET_PDEATHSIG = 1   # linux/prctl.h
 LAUNCHER_ENV = 'SWARM_PREFORK_LAUNCHER'   # pid of the process that owns the fork server
 
 
-def die_with_parent() -> None:
+def die_with_parent(parent: int | None = None) -> None:
     """SIGKILL this process when its parent dies, however it dies (Linux; elsewhere a
-    no-op).
+    no-op). ``parent``: the pid of the process that forked this one; if it has died
+    already (this process was reparented before the death signal was set), this process
+    dies at once: a child forked just before its launcher is SIGKILLed runs this after
+    the launcher is gone, and the death signal of a dead parent never comes, so it
+    would otherwise run orphaned for the whole of the run.
 
     The launcher's children run in their own sessions (so that Ctrl-C reaches each node
     once, from the launcher), which also keeps a SIGKILL of the launcher from reaching
@@ -49,6 +53,8 @@ def die_with_parent() -> None:
     if sys.platform.startswith('linux'):
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    if parent is not None and os.getppid() != parent:
+        os.kill(os.getpid(), signal.SIGKILL)
 
 
 def die_with(pid: int) -> None:
@@ -88,9 +94,7 @@ def run_node(module: str, argv: Sequence[str], log_path: str, env: Mapping[str, 
     leave both running after a SIGKILL of the launcher."""
     parent = os.getppid()
     os.setsid()
-    die_with_parent()
-    if os.getppid() != parent:      # the fork server died before the line above
-        os.kill(os.getpid(), signal.SIGKILL)
+    die_with_parent(parent)     # the fork server may have died since the line above
     die_with(launcher_pid)
     fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
     os.dup2(fd, 1)

@@ -17,6 +17,7 @@ no orphans are left.
 from __future__ import annotations
 
 from collections.abc import Iterable
+import functools
 import os
 import pathlib
 import signal
@@ -78,7 +79,8 @@ class Children:
         log = open(self.log_dir / f'{name}.log', 'w', encoding='utf-8')  # noqa: SIM115
         self.procs[name] = subprocess.Popen(
             [sys.executable, *args], stdout=log, stderr=subprocess.STDOUT, env=self.env,
-            cwd=self.cwd, start_new_session=True, preexec_fn=die_with_parent)
+            cwd=self.cwd, start_new_session=True,
+            preexec_fn=functools.partial(die_with_parent, os.getpid()))
 
     def fork(self, name: str, module: str, args: list[str]) -> None:
         """Like ``start`` for ``python -m module args``, forked from a server that has
