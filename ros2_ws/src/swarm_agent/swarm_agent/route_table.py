@@ -26,7 +26,7 @@ import numpy as np
 
 from swarm_agent.address_grid import ADDRESSES, AddressGrid
 from swarm_agent.neighbour_table import NeighbourGrid
-from swarm_agent.wire import Advert, INFINITE_HOPS
+from swarm_agent.wire import INFINITE_HOPS
 from swarm_common.jit import kernel
 
 SEQUENCE_STEP = 2           # own sequence numbers grow by this at every full dump (even)
@@ -143,16 +143,11 @@ class RouteTable:
     def clear_changed(self) -> None:
         self._cells()[:, CHANGED] = 0
 
-    def adverts(self, changed_only: bool = False) -> list[Advert]:
-        """The routes as adverts (destination, hops, sequence number), sorted by
-        destination: all of them (a full dump) or those changed (an incremental one)."""
-        return list(map(Advert._make, zip(*(c.tolist() for c in self.advert_columns(
-            changed_only)))))
-
     def advert_columns(self, changed_only: bool = False) -> tuple[
             np.ndarray, np.ndarray, np.ndarray]:
-        """``adverts`` as three arrays (destinations, hops, sequence numbers), for
-        ``wire.encode_advert_columns``."""
+        """The routes as adverts, sorted by destination: all of them (a full dump) or
+        those changed (an incremental one), as three arrays (destinations, hops,
+        sequence numbers) for ``wire.encode_advert_columns``."""
         ids, cells = self._by_destination(changed_only)
         return ids, cells[:, HOPS], cells[:, SEQ]
 
