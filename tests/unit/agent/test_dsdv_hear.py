@@ -9,7 +9,7 @@ import copy
 import pytest
 
 from swarm_agent.dsdv import DsdvRouter
-from swarm_agent.dsdv_receive import hear
+from swarm_agent.dsdv_receive import hear, takers_of
 from swarm_agent.packet import BROADCAST, Kind, Packet
 
 
@@ -49,15 +49,21 @@ FRAMES = {
 }
 
 
+@pytest.mark.parametrize('kept', [False, True], ids=['fresh', 'kept takers'])
 @pytest.mark.parametrize('name', sorted(FRAMES))
-def test_one_call_for_all_receivers_is_one_call_each(name):
+def test_one_call_for_all_receivers_is_one_call_each(name, kept):
+    """Also with the receivers' ``Takers`` worked out before the frame (``kept``), as
+    a process that keeps them per set of receivers does: a frame one of them sent
+    itself ('own frame'), or one for one of them only, is checked as without."""
     mesh = _mesh()
     packet = FRAMES[name](mesh)
     receivers = [mesh[1], mesh[3], mesh[4]]          # 2, 4 and 5
     apart = copy.deepcopy(receivers)
+    known = takers_of(receivers) if kept else None
+    assert known is None or known.ids == {2, 4, 5}
     before = [_state(r) for r in receivers]
     outs_apart = [r.on_packet(6.5, packet) for r in apart]
-    outs = hear(6.5, packet, receivers)
+    outs = hear(6.5, packet, receivers, known)
     assert len(outs) == 3
     for together, alone, out, out_alone in zip(receivers, apart, outs, outs_apart):
         assert _state(together) == _state(alone)

@@ -13,6 +13,7 @@ import pytest
 from swarm_agent.agent_factory import DEFAULT_KEY_FILE, make_brain, swarm_keyring
 from swarm_agent.frame_auth import (
     _accept,
+    auth_groups,
     COUNTER_SCALE,
     FrameAuth,
     FrameAuthError,
@@ -146,10 +147,18 @@ def test_one_frame_opened_by_many_receivers_as_one_by_one():
                 FrameAuth(OTHER, _clock(), store=store), FrameAuth(KEY, _clock()),
                 FrameAuth(KEY, _clock(), window=1, store=store)]
     together, alone = receivers(), receivers()
-    together[1].open(frames[2]), alone[1].open(frames[2])    # receiver 1 heard a later one
+    kept = receivers()                                     # their groups worked out once
+    groups = auth_groups(kept)
+    assert sorted(i for group, _ in groups for i in group) == list(range(5))
+    assert len(groups) == 4       # the two of one store, key and window are one group
+    for auths in (together, alone, kept):
+        auths[1].open(frames[2])                           # receiver 1 heard a later one
     for frame in (frames[0], frames[2], frames[1]):
-        assert open_all(together, frame) == [a.open(frame) for a in alone]
+        expected = [a.open(frame) for a in alone]
+        assert open_all(together, frame) == expected
+        assert open_all(kept, frame, groups) == expected
     assert [a.stats for a in together] == [a.stats for a in alone] == [
+        a.stats for a in kept] == [
         {}, {'auth_replay': 1}, {'auth_bad_tag': 3}, {}, {'auth_too_old': 1}]
 
 

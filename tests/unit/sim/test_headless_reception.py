@@ -17,8 +17,8 @@ SQUARE = pathlib.Path(__file__).resolve().parents[2] / 'data' / 'square_8m.json'
 
 def _run(monkeypatch, one_by_one: bool):
     if one_by_one:
-        def each(t, packet, brains):
-            for brain in brains:
+        def each(t, packet, heard):
+            for brain in heard.brains:
                 reception.receive(t, packet, (brain,))
         monkeypatch.setattr(headless, 'receive', each)
     scenario = Scenario(shape=load_shape(str(SQUARE)), type_counts={1: 5, 2: 4, 3: 3},

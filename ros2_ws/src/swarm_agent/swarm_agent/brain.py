@@ -67,7 +67,7 @@ from swarm_agent.mesh_messages import (
     NeighbourInfo,
 )
 from swarm_agent.packet import Kind, Packet
-from swarm_agent.reception import receive
+from swarm_agent.reception import receive, Receivers
 from swarm_agent.route_table import RouteStore
 from swarm_agent.setpoint import (
     avoid_collisions,
@@ -113,6 +113,7 @@ class AgentBrain:
         self.rng = rng
         self.router = DsdvRouter(config.agent_id, config.dsdv, boot_time_s, route_store)
         self.router.set_heartbeat_info(lambda: self._info().encode())
+        self._alone = Receivers((self,))     # what ``on_packet`` hands ``receive``
         self.localizer = Localizer(config.localization, np.asarray(initial_position, float))
         self.loop = VelocityLoop(gains, u_max=u_max)
         self.neighbours: dict[int, Neighbour] = {}
@@ -261,7 +262,7 @@ class AgentBrain:
     def on_packet(self, t: float, packet: Packet) -> None:
         """A packet heard on the radio: authenticate it, route it, and consume what is
         for this agent (``reception.receive``, as for many brains at once)."""
-        receive(t, packet, (self,))
+        receive(t, packet, self._alone)
 
     def take_routed(self, t: float, packets: Sequence[Packet],
                     delivered: Sequence[Delivered]) -> None:

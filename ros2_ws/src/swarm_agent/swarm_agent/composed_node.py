@@ -80,7 +80,7 @@ from swarm_agent.brain_config import BrainConfigError
 from swarm_agent.conversions import sensor_batch_from_msg, SensorInputs, stamp_seconds
 from swarm_agent.frame_auth import ReplayStore
 from swarm_agent.packet import PacketError
-from swarm_agent.reception import receive
+from swarm_agent.reception import receive, ReceiverSets
 from swarm_agent.route_table import RouteStore
 from swarm_common import qos
 from swarm_common.ros_support import declare_list_parameter, run_node
@@ -135,6 +135,9 @@ class ComposedAgents(Node):
             robots = [r for r in robots if int(r['id']) in set(only)]
         self.executor_ = executor
         self.agents: dict[int, AgentNode] = {}
+        # The receivers of each set of addresses a frame reaches (cleared when one dies).
+        self._heard = ReceiverSets(
+            lambda r: node.brain if (node := self.agents.get(r)) is not None else None)
         # One clock for all: the container's time source drives every agent's clock (the
         # agents themselves run with use_sim_time false) and the clock of the container's
         # timers that step them. Not the container node's own clock: that one follows
@@ -323,13 +326,14 @@ class ComposedAgents(Node):
                 if agent_id in agents:
                     now = agents[agent_id].radio_time(stamp)
             for _, packet, receivers in rx:
-                brains = [agents[r].brain for r in receivers if r in agents]
-                if brains:
-                    receive(now, packet, brains)
+                heard = self._heard(receivers)
+                if heard is not None:
+                    receive(now, packet, heard)
 
     def _on_kill(self, msg: Int32MultiArray) -> None:
         for agent_id in msg.data:
             node = self.agents.pop(int(agent_id), None)
+            self._heard.clear()
             if node is not None:
                 self.executor_.remove_node(node)
                 node.destroy_node()

@@ -53,24 +53,45 @@ class RouterOutput:
 _NOTHING = RouterOutput()   # what most frames cause: one shared, read-only instance
 
 
-def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[RouterOutput]:
+class Takers(NamedTuple):
+    """Routers that hear frames together, with what ``hear`` asks of them worked out
+    once (``takers_of``): their addresses and their kernel groups (``_groups``)."""
+
+    ids: frozenset[int]
+    groups: list[_Group]
+
+
+def takers_of(routers: Sequence[DsdvRouter]) -> Takers:
+    """``Takers`` of ``routers`` (distinct), for every frame they hear together."""
+    return Takers(frozenset(r.id for r in routers), _groups(list(routers)))
+
+
+def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter],
+         known: Takers | None = None) -> list[RouterOutput]:
     """One frame heard by each of ``routers`` (the receivers of one transmission in this
-    process): what depends on the frame alone (checks, kind, decoding) is done once,
-    then each router applies it. Outputs in order, read-only (may be shared)."""
+    process): what depends on the frame alone (checks, kind and decoding) is done once,
+    then each router applies it. Outputs in order, read-only (may be shared). ``known``:
+    ``takers_of(routers)``, when the caller keeps it."""
     outs = [_NOTHING] * len(routers)
     source = packet.source
     if not 0 <= source < BROADCAST:   # no radio has this address (fuzzing)
         _count_all(routers, 'rejected_bad_source')
         return outs
     destination = packet.destination
-    taking = [(i, r) for i, r in enumerate(routers)
-              if r.id != source and (destination == BROADCAST or r.id == destination)]
-    if len(taking) < len(routers):
-        _count_all([r for r in routers if r.id != source and r.id != destination
-                    and destination != BROADCAST], 'not_for_me')
-    if not taking:
-        return outs
-    takers = routers if len(taking) == len(routers) else [r for _, r in taking]
+    groups = None
+    if known is not None and destination == BROADCAST and source not in known.ids:
+        taking = list(enumerate(routers))     # every router takes it: the common case
+        groups = known.groups
+    else:
+        taking = [(i, r) for i, r in enumerate(routers)
+                  if r.id != source and (destination == BROADCAST or r.id == destination)]
+        if len(taking) < len(routers):
+            _count_all([r for r in routers if r.id != source and r.id != destination
+                        and destination != BROADCAST], 'not_for_me')
+        if not taking:
+            return outs
+    every = len(taking) == len(routers)
+    takers = routers if every else [r for _, r in taking]
     kind = _KINDS.get(packet.kind)   # (Kind(...) raising would be 2 % of a composed swarm)
     if packet.ttl <= 0 or kind is None:   # swarm_msgs/RadioPacket: ttl 0 is dropped
         _count_all(takers, 'dropped_ttl' if packet.ttl <= 0 else 'rejected_unknown_kind')
@@ -91,9 +112,9 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
         elif kind is _HEARTBEAT:
             seq, info = wire.decode_heartbeat(packet.payload)
             heartbeat = RouterOutput(delivered=[Delivered(source, Kind.HEARTBEAT, info)])
-            groups = _groups(takers)
+            groups = groups or _groups(takers)
             _neighbour_heard(groups, t, source, True)
-            if len(taking) == len(routers):
+            if every:
                 outs = [heartbeat] * len(routers)
             else:
                 for i, _ in taking:
@@ -102,7 +123,7 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
         elif kind is _FULL or kind is _INCREMENTAL:
             seq, adverts = wire.decode_adverts(packet.payload)
             rows, ones, others = _dump_terms(source, adverts)
-            groups = _groups(takers)
+            groups = groups or _groups(takers)
             _neighbour_heard(groups, t, source, False)
             _learn_neighbourhood(takers, source, ones, others)
             _link_added(groups, source, None, seq)
@@ -111,7 +132,7 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter]) -> list[Router
             for i, r in taking:
                 outs[i] = _per_router(r, t, packet, kind, r._on_data)
         else:   # a known kind with no handler (FRAGMENT travels inside DATA and FLOOD)
-            _count_all([r for _, r in taking], 'rejected_unknown_kind')
+            _count_all(takers, 'rejected_unknown_kind')
     except WireError as exc:
         # The frame's own decoding failed: the same for every receiver.
         for _, r in taking:

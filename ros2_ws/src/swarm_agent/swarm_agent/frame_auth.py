@@ -300,23 +300,32 @@ class FrameAuth:
         return None
 
 
-def open_all(auths: Sequence[FrameAuth], packet: Packet) -> list[Packet | None]:
+def auth_groups(auths: Sequence[FrameAuth]) -> list[tuple[list[int], np.ndarray]]:
+    """``auths`` (distinct) grouped as ``open_all`` checks them: the positions that share a
+    store, keyring and window, with their rows in the store. Receivers that hear frames
+    together compute this once (``reception.Receivers``)."""
+    first = auths[0]
+    if len(auths) == 1:   # a node's own window, the mission's: one frame at a time
+        return [([0], first._row)]
+    if all(a._group is first._group for a in auths):   # one store, keyring and window
+        return [(list(range(len(auths))), np.array([a.row for a in auths], dtype=np.int64))]
+    keyed: dict[object, list[int]] = {}
+    for i, a in enumerate(auths):
+        keyed.setdefault(a._group, []).append(i)
+    return [(group, np.array([auths[i].row for i in group], dtype=np.int64))
+            for group in keyed.values()]
+
+
+def open_all(auths: Sequence[FrameAuth], packet: Packet,
+             groups: Sequence[tuple[list[int], np.ndarray]] | None = None
+             ) -> list[Packet | None]:
     """``packet`` opened by each of ``auths`` (the receivers of one transmission in this
     process; distinct): the frame without its trailer, or None (counted by that
     receiver) when it fails. The tag is checked once per keyring, and each receiver's
-    replay window is applied in one call per store (``_accept``)."""
+    replay window is applied in one call per store (``_accept``). ``groups``:
+    ``auth_groups(auths)``, when the caller keeps it."""
     out: list[Packet | None] = [None] * len(auths)
-    first = auths[0]
-    if len(auths) == 1:   # a node's own window, the mission's: one frame at a time
-        groups = [[0]]
-    elif all(a._group is first._group for a in auths):   # one store, keyring and window
-        groups = [list(range(len(auths)))]
-    else:
-        keyed: dict[object, list[int]] = {}
-        for i, a in enumerate(auths):
-            keyed.setdefault(a._group, []).append(i)
-        groups = list(keyed.values())
-    for group in groups:
+    for group, rows in groups or auth_groups(auths):
         auth = auths[group[0]]
         result = auth._verify(packet)
         if result.__class__ is str:
@@ -326,8 +335,6 @@ def open_all(auths: Sequence[FrameAuth], packet: Packet) -> list[Packet | None]:
         opened, counter = result
         store = auth.store
         col = store.column_of(packet.source)     # may grow the cells: before reading them
-        rows = auth._row if len(auths) == 1 else np.array([auths[i].row for i in group],
-                                                          dtype=np.int64)
         verdicts = _accept(store.cells, rows, col, np.uint64(counter), auth._size,
                            auth._full)
         if len(group) == len(auths) and not verdicts.any():

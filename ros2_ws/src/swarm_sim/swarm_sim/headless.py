@@ -38,7 +38,7 @@ from swarm_agent.agent_factory import make_brain, swarm_keyring
 from swarm_agent.brain import AgentBrain
 from swarm_agent.frame_auth import FrameAuth, FrameAuthError, ReplayStore
 from swarm_agent.mission_radio import MeshListener
-from swarm_agent.reception import receive
+from swarm_agent.reception import receive, ReceiverSets
 from swarm_agent.route_table import RouteStore
 from swarm_common.fleet import place_fleet, PLACEMENT_STD_M, random_fleet, RobotSpec
 from swarm_common.robot_types import load_robot_types
@@ -193,6 +193,7 @@ class HeadlessSwarm:
         self._routes, self._windows = RouteStore(), ReplayStore()
         self.brains: list[AgentBrain | None] = [self._new_brain(r, 0.0) for r in fleet]
         self._by_id = dict(zip(self.ids, self.brains))   # radio address -> brain (or None)
+        self._heard = ReceiverSets(self._by_id.__getitem__)  # cleared as brains change
         self.mission = Mission(
             MissionConfig(method=scenario.method,
                           seed=scenario.seed if scenario.partition_seed is None
@@ -222,6 +223,7 @@ class HeadlessSwarm:
             if i is not None and self.world.remove(i):
                 _add_counts(self.rejected, self.brains[i].auth_stats)
                 self.brains[i] = self._by_id[agent] = None
+                self._heard.clear()
                 self.mission.events.append(f't={t:.1f} s: agent {agent} removed')
 
     # ------------------------------------------------------------------ restarts
@@ -262,6 +264,7 @@ class HeadlessSwarm:
             _add_counts(self.rejected, self.brains[i].auth_stats)
             brain = self.brains[i] = self._by_id[agent] = self._new_brain(
                 self.fleet[i], t if boot_time_s is None else boot_time_s, t)
+            self._heard.clear()
             if self.mission.shape is not None:
                 brain.set_shape(self.mission.shape, self.mission.shape_version)
                 brain.set_goals(self.mission.goals, self.mission.goal_version)
@@ -328,13 +331,12 @@ class HeadlessSwarm:
 
     def _feed(self, readings: Readings) -> None:
         """The world's readings to the living brains: radio, IMU, ranges, proximity, GPS."""
-        brains, brain_of = self.brains, self._by_id.__getitem__
+        brains, heard_by = self.brains, self._heard
         for t, packet, receivers in readings.rx or ():
-            # One transmission, all its receivers in one call (reception.receive).
-            heard = list(map(brain_of, receivers))
-            if None in heard:    # removed while the frame was on the air
-                heard = [b for b in heard if b is not None]
-            if heard:
+            # One transmission, all its receivers in one call (reception.receive); the
+            # removed (while the frame was on the air) are left out.
+            heard = heard_by(receivers)
+            if heard is not None:
                 receive(t, packet, heard)
         t = readings.t
         if readings.imu is not None:
