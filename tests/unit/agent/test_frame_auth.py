@@ -229,3 +229,25 @@ def test_brains_seal_what_they_send_and_drop_what_fails():
     assert a.auth_stats['auth_bad_tag'] > 0 and 'auth_bad_tag' in a.status_line()
     plain = make_brain(agent_id=4, agent_type=1, auth=False)
     assert plain.auth is None and plain.auth_stats == {}
+
+
+def test_a_frame_sealed_here_opens_without_its_tag_computed_again(monkeypatch):
+    """The seal enters its frame in the verified frames: a receiver holding the key opens
+    it with no HMAC of its own; the same header with a forged tag, or with the body
+    changed after sealing, is still computed and rejected."""
+    from swarm_agent import frame_auth
+    sender, receiver = FrameAuth(KEY, _clock()), FrameAuth(KEY, _clock())
+    sealed = sender.seal(_frame(b'sealed here'))
+    tags = []
+    real = frame_auth._tag
+    monkeypatch.setattr(frame_auth, '_tag', lambda key, data: tags.append(1) or real(key, data))
+    assert receiver.open(sealed) == _frame(b'sealed here') and tags == []
+    body = sealed.payload
+    forged = Packet(*[getattr(sealed, f) for f in ('source', 'destination', 'kind', 'sequence',
+                                                   'ttl')], body[:-1] + bytes([body[-1] ^ 1]))
+    changed = Packet(sealed.source, sealed.destination, sealed.kind, sealed.sequence,
+                     sealed.ttl, b'X' + body[1:])
+    assert receiver.open(forged) is None and receiver.open(changed) is None
+    assert len(tags) == 2 and receiver.stats == {'auth_bad_tag': 2}
+    # Under another keyring the sealed frame is checked, and fails.
+    assert FrameAuth(OTHER, _clock()).open(sealed) is None and len(tags) == 3

@@ -35,7 +35,8 @@ trailer), ``auth_unknown_key``, ``auth_bad_tag``, ``auth_replay``, ``auth_too_ol
 
 Verifying is the same computation for every receiver of one transmission: the tag check
 is cached per process on the frame's bytes (``_verified``: the same answer, computed once
-when a composed process or the headless evaluator holds many receivers), and the last
+when a composed process or the headless evaluator holds many receivers; a frame sealed
+in the process is entered when it is sealed, its tag known good), and the last
 frame object checked is remembered (``_Verifier``: receivers of one transmission get it in
 a row); each receiver still applies its own replay window.
 
@@ -157,17 +158,32 @@ def _tag(key: bytes, data: bytes) -> bytes:
     return mac.digest()[:TAG_BYTES]
 
 
-@functools.lru_cache(maxsize=8192)
+_OPENED: dict[tuple, Packet | None] = {}   # _verified's answers, oldest first
+_OPENED_LIMIT = 8192
+_UNKNOWN = object()
+
+
 def _verified(key: bytes, source: int, destination: int, kind: int, sequence: int, ttl: int,
               payload: bytes) -> Packet | None:
     """The frame without its trailer if the tag matches (payload holds the trailer), else
-    None. Cached: every receiver of one transmission asks the same question, and gets the
-    same read-only frame (whose payload object the decoders' caches then hash once)."""
-    tag = _tag(key, _LINK.pack(source, destination, kind, sequence, ttl)
-               + payload[:-TAG_BYTES])
-    if not hmac.compare_digest(tag, payload[-TAG_BYTES:]):
-        return None
-    return Packet(source, destination, kind, sequence, ttl, payload[:-TRAILER_BYTES])
+    None. Kept (the last ``_OPENED_LIMIT``): every receiver of one transmission asks the
+    same question, and gets the same read-only frame (whose payload object the decoders'
+    caches then hash once); a frame sealed in this process is known good from its seal."""
+    question = (key, source, destination, kind, sequence, ttl, payload)
+    opened = _OPENED.get(question, _UNKNOWN)
+    if opened is _UNKNOWN:
+        tag = _tag(key, _LINK.pack(source, destination, kind, sequence, ttl)
+                   + payload[:-TAG_BYTES])
+        opened = (Packet(source, destination, kind, sequence, ttl, payload[:-TRAILER_BYTES])
+                  if hmac.compare_digest(tag, payload[-TAG_BYTES:]) else None)
+        _keep(question, opened)
+    return opened
+
+
+def _keep(question: tuple, opened: Packet | None) -> None:
+    if len(_OPENED) >= _OPENED_LIMIT:
+        del _OPENED[next(iter(_OPENED))]
+    _OPENED[question] = opened
 
 
 class ReplayStore(AddressGrid):
@@ -288,8 +304,13 @@ class FrameAuth:
         tag = _tag(self._seal_key, _LINK.pack(
             packet.source, packet.destination, packet.kind, packet.sequence, packet.ttl)
             + body)
-        return Packet(packet.source, packet.destination, packet.kind, packet.sequence,
-                      packet.ttl, body + tag)
+        sealed = Packet(packet.source, packet.destination, packet.kind, packet.sequence,
+                        packet.ttl, body + tag)
+        # What a receiver here holding the key will find: the tag need not be computed
+        # again (the HMAC was 3 % of the headless evaluator).
+        _keep((self._seal_key, packet.source, packet.destination, packet.kind,
+               packet.sequence, packet.ttl, sealed.payload), packet)
+        return sealed
 
     def open(self, packet: Packet) -> Packet | None:
         """The frame with the trailer removed, or None (counted) when it fails."""

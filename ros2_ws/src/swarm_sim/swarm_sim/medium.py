@@ -300,12 +300,13 @@ class RadioMedium:
         me = self.positions[self.index[receiver]]
         out = []
         std = self.config.range_noise_std
-        beacons = set()
-        for b in beacon_ids:
-            if b in near_set:
-                beacons.add(b)
-                true = float(np.hypot(*(self.positions[self.index[b]] - me)))
-                out.append((int(b), max(0.0, true + float(self.rng.normal(0.0, std))), std))
+        heard = [b for b in beacon_ids if b in near_set]
+        beacons = set(heard)
+        if heard:
+            # One draw of len(heard) normals is the same stream as one draw each.
+            true = np.hypot(*(self.positions[[self.index[b] for b in heard]] - me).T)
+            measured = np.maximum(true + self.rng.normal(0.0, std, len(heard)), 0.0)
+            out += [(int(b), float(r), std) for b, r in zip(heard, measured)]
         others = [k for k in near if k not in beacons] if peers else []
         if others:
             rows = [self.index[k] for k in others]
