@@ -132,3 +132,41 @@ def test_relays_form_a_connected_dominating_set():
     # Measured: 38-46 % send; self-pruning alone (the previous hop covers everyone) let
     # 69-90 % send on the same graphs.
     assert max(sent_share) < 0.6, sent_share
+
+
+def _covered_by_definition(prev, neighbours, two_hop, higher) -> bool:
+    """The coverage condition as stated: the previous hop's group (itself and the
+    higher-id neighbours linked to it through each other) reaches every neighbour."""
+    if prev not in two_hop:
+        return False
+    group, grew = {prev}, True
+    while grew:
+        linked = {w for w in higher - group if any(w in two_hop[g] for g in group)}
+        grew = bool(linked)
+        group |= linked
+    reached = set().union(*(two_hop[g] | {g} for g in group))
+    return set(neighbours) - {prev} <= reached
+
+
+def test_the_coverage_condition_as_bit_masks_is_the_condition():
+    """``covered`` walks bit masks of the neighbour sets; on 2,000 random neighbourhoods
+    (frozensets as the routers hold them, and plain sets) it answers as the condition's
+    definition, self-pruning and Rule k cases both among them."""
+    from swarm_agent.flood_relay import covered
+    rng = np.random.default_rng(7)
+    answers = []
+    for _ in range(2000):
+        me = int(rng.integers(0, 40))
+        ids = [int(i) for i in rng.choice(np.setdiff1d(np.arange(60), [me]),
+                                          int(rng.integers(1, 14)), replace=False)]
+        neighbours = set(ids)
+        kind = frozenset if rng.random() < 0.7 else set
+        two_hop = {n: kind(int(i) for i in rng.choice(60, int(rng.integers(0, 12)),
+                                                     replace=False) if i != n)
+                   for n in ids if rng.random() < 0.9}
+        higher = {n for n in ids if n > me and n in two_hop}
+        prev = ids[0]
+        expected = _covered_by_definition(prev, neighbours, two_hop, higher)
+        assert covered(prev, neighbours, two_hop, higher) == expected
+        answers.append(expected)
+    assert 0.05 < np.mean(answers) < 0.95

@@ -24,11 +24,13 @@ coverage decision until it changes.
 from __future__ import annotations
 
 from collections.abc import Mapping, Set
+import functools
 import math
+import operator
 import zlib
 
 
-def covered(previous_hop: int, neighbours: Set[int], two_hop: Mapping[int, set[int]],
+def covered(previous_hop: int, neighbours: Set[int], two_hop: Mapping[int, Set[int]],
             higher: Set[int]) -> bool:
     """Do the previous hop and higher-id neighbours, joined up, reach all neighbours?
 
@@ -36,32 +38,68 @@ def covered(previous_hop: int, neighbours: Set[int], two_hop: Mapping[int, set[i
     neighbour set; ``higher``: the neighbours with a higher id than this node whose
     neighbour set is known. Checked as: one connected group of the previous hop and
     higher-id neighbours whose closed neighbourhoods contain all our neighbours (a few
-    dozen nodes, per view change).
+    dozen nodes, per view change). The sets are taken as bit masks (``_mask``): the walk
+    joins whole neighbourhoods in one integer operation each, where set unions hash
+    every member (at 200 robots, most hearing each other, the set form was an eighth of
+    a trial).
     """
     sender_reach = two_hop.get(previous_hop)
     if sender_reach is None:
         return False  # the sender's neighbourhood is unknown: relay to be safe
-    need = set(neighbours) - sender_reach
-    need.discard(previous_hop)
+    sender = 1 << previous_hop
+    joined = _mask(sender_reach)
+    need = _mask(neighbours) & ~joined & ~sender
     if not need:
         return True   # self-pruning: the sender reached every neighbour of ours
     # Rule k joined with the sender: walk from the sender through higher-id neighbours
     # linked to it until all our neighbours are reached (a group not linked to the
     # sender never helps). A link one side does not advertise yet only makes us relay.
-    remaining = set(higher) - {previous_hop}
-    joined = set(sender_reach)
+    remaining = _mask(higher) & ~sender
     frontier = [previous_hop]
     while frontier:
-        linked = two_hop[frontier.pop()] & remaining
+        linked = _mask(two_hop[frontier.pop()]) & remaining
         if linked:
-            remaining -= linked
+            remaining ^= linked
             joined |= linked
-            for w in linked:
-                joined |= two_hop[w]
-            if need <= joined:
+            members = _members(linked)
+            for w in members:
+                joined |= _mask(two_hop[w])
+            if not need & ~joined:
                 return True
-            frontier.extend(linked)
+            frontier.extend(members)
     return False
+
+
+_MASKS: dict[frozenset[int], int] = {}   # the masks of immutable sets, once each
+_MASKS_LIMIT = 1 << 16
+
+
+def _mask(ids: Set[int]) -> int:
+    """``ids`` (addresses, 0..65534) as the bits of one integer, bit i for address i.
+    Written here because no library gives set algebra on a few dozen small integers
+    cheaper than Python's own integers do. The masks of frozensets (the routers' shared
+    two-hop sets) are kept."""
+    if ids.__class__ is not frozenset:
+        return functools.reduce(operator.or_, map(_ONE.__lshift__, ids), 0)
+    mask = _MASKS.get(ids)
+    if mask is None:
+        if len(_MASKS) >= _MASKS_LIMIT:
+            _MASKS.clear()
+        mask = _MASKS[ids] = functools.reduce(operator.or_, map(_ONE.__lshift__, ids), 0)
+    return mask
+
+
+_ONE = 1
+
+
+def _members(mask: int) -> list[int]:
+    """The addresses whose bits are set in ``mask``, lowest first."""
+    out = []
+    while mask:
+        low = mask & -mask
+        out.append(low.bit_length() - 1)
+        mask ^= low
+    return out
 
 
 def extra_copies(least: float, loss: float, miss_target: float) -> float:
