@@ -128,7 +128,7 @@ class DsdvRouter:
         self._copies = self.config.flood_extra_copies  # k, renewed at every heartbeat sent
         # Flood relay decisions depend only on the two-hop view: kept until it changes.
         self._silent_after: dict[int, bool] = {}  # previous hop -> stay silent?
-        self._higher: set[int] | None = None
+        self._view_masks: tuple[int, int] | None = None   # _should_relay's, per view
         self._view: set[int] | None = None        # the neighbours, kept until they change
         self._info: bytes | Callable[[], bytes] = b''
         self._tx_seq = 0
@@ -295,18 +295,19 @@ class DsdvRouter:
 
     def _view_changed(self) -> None:
         self._silent_after.clear()
-        self._higher = None
+        self._view_masks = None
         self._view = None
 
     def _should_relay(self, previous_hop: int, origin: int, flood_id: int) -> bool:
         """Relay unless the coverage condition (``flood_relay``) lets this node be silent."""
         silent = self._silent_after.get(previous_hop)
         if silent is None:
-            view = self._neighbours()
-            if self._higher is None:   # neighbours with a higher id and a known neighbourhood
-                self._higher = {z for z in view if z > self.id and z in self.two_hop}
+            if self._view_masks is None:   # as masks: neighbours, those with a higher id
+                view = self._neighbours()  # and a known neighbourhood
+                self._view_masks = (flood_relay.mask(view), flood_relay.mask(
+                    [z for z in view if z > self.id and z in self.two_hop]))
             silent = self._silent_after[previous_hop] = flood_relay.covered(
-                previous_hop, view, self.two_hop, self._higher)
+                previous_hop, self._view_masks[0], self.two_hop, self._view_masks[1])
         if not silent:
             return True
         return flood_relay.relays_anyway(self._copies, len(self._neighbours()), flood_id,

@@ -20,6 +20,7 @@ from typing import NamedTuple, TYPE_CHECKING
 import numpy as np
 
 from swarm_agent import neighbour_table, route_table, wire
+from swarm_agent.flood_relay import Neighbourhood
 from swarm_agent.packet import BROADCAST, Kind, Packet
 from swarm_agent.route_table import RouteStore, SEQUENCE_STEP
 from swarm_agent.wire import Advert, WireError
@@ -255,7 +256,7 @@ def _merged(groups: list[_Group], neighbour: int, adverts: np.ndarray) -> None:
             routers[i]._count('damped', n)
 
 
-_NO_NEIGHBOURS: frozenset[int] = frozenset()
+_NO_NEIGHBOURS = Neighbourhood()
 
 
 def _learn_neighbourhood(routers: Sequence[DsdvRouter], neighbour: int, ones: frozenset[int],
@@ -275,7 +276,7 @@ def _learn_neighbourhood(routers: Sequence[DsdvRouter], neighbour: int, ones: fr
         _, learnt = outcome.get(id(known)) or (None, None)
         if learnt is None:
             learnt = (known if ones <= known and known.isdisjoint(others)
-                      else frozenset((known | ones) - others))
+                      else Neighbourhood((known | ones) - others))
             outcome[id(known)] = (known, learnt)
         if learnt is not known:
             r.two_hop[neighbour] = learnt

@@ -30,63 +30,65 @@ import operator
 import zlib
 
 
-def covered(previous_hop: int, neighbours: Set[int], two_hop: Mapping[int, Set[int]],
-            higher: Set[int]) -> bool:
+def covered(previous_hop: int, neighbours: Set[int] | int, two_hop: Mapping[int, Set[int]],
+            higher: Set[int] | int) -> bool:
     """Do the previous hop and higher-id neighbours, joined up, reach all neighbours?
 
     ``neighbours``: this node's neighbours; ``two_hop``: each neighbour's advertised
     neighbour set; ``higher``: the neighbours with a higher id than this node whose
-    neighbour set is known. Checked as: one connected group of the previous hop and
-    higher-id neighbours whose closed neighbourhoods contain all our neighbours (a few
-    dozen nodes, per view change). The sets are taken as bit masks (``_mask``): the walk
-    joins whole neighbourhoods in one integer operation each, where set unions hash
-    every member (at 200 robots, most hearing each other, the set form was an eighth of
-    a trial).
+    neighbour set is known (each a set or its ``mask``). Checked as: one connected group
+    of the previous hop and higher-id neighbours whose closed neighbourhoods contain all
+    our neighbours (a few dozen nodes, per view change). The sets are taken as bit masks
+    (``mask``): the walk joins a whole neighbourhood in one integer operation, where a
+    set union hashes every member.
     """
     sender_reach = two_hop.get(previous_hop)
     if sender_reach is None:
         return False  # the sender's neighbourhood is unknown: relay to be safe
     sender = 1 << previous_hop
-    joined = _mask(sender_reach)
-    need = _mask(neighbours) & ~joined & ~sender
+    joined = mask(sender_reach)
+    need = mask(neighbours) & ~joined & ~sender
     if not need:
         return True   # self-pruning: the sender reached every neighbour of ours
     # Rule k joined with the sender: walk from the sender through higher-id neighbours
     # linked to it until all our neighbours are reached (a group not linked to the
     # sender never helps). A link one side does not advertise yet only makes us relay.
-    remaining = _mask(higher) & ~sender
+    remaining = mask(higher) & ~sender
     frontier = [previous_hop]
     while frontier:
-        linked = _mask(two_hop[frontier.pop()]) & remaining
+        linked = mask(two_hop[frontier.pop()]) & remaining
         if linked:
             remaining ^= linked
             joined |= linked
             members = _members(linked)
             for w in members:
-                joined |= _mask(two_hop[w])
+                joined |= mask(two_hop[w])
             if not need & ~joined:
                 return True
             frontier.extend(members)
     return False
 
 
-_MASKS: dict[frozenset[int], int] = {}   # the masks of immutable sets, once each
-_MASKS_LIMIT = 1 << 16
+class Neighbourhood(frozenset):
+    """A neighbour's advertised neighbour set as a router holds it (immutable, shared
+    by the receivers that learnt the same: ``dsdv_receive``), its ``mask`` kept."""
+
+    __slots__ = ('_bits',)
 
 
-def _mask(ids: Set[int]) -> int:
-    """``ids`` (addresses, 0..65534) as the bits of one integer, bit i for address i.
-    Written here because no library gives set algebra on a few dozen small integers
-    cheaper than Python's own integers do. The masks of frozensets (the routers' shared
-    two-hop sets) are kept."""
-    if ids.__class__ is not frozenset:
-        return functools.reduce(operator.or_, map(_ONE.__lshift__, ids), 0)
-    mask = _MASKS.get(ids)
-    if mask is None:
-        if len(_MASKS) >= _MASKS_LIMIT:
-            _MASKS.clear()
-        mask = _MASKS[ids] = functools.reduce(operator.or_, map(_ONE.__lshift__, ids), 0)
-    return mask
+def mask(ids: Set[int] | int) -> int:
+    """``ids`` (addresses, 0..65534) as the bits of one integer, bit i for address i (a
+    mask is its own; a ``Neighbourhood`` keeps its). Written here because no library
+    gives set algebra on a few dozen small integers cheaper than Python's own integers."""
+    if ids.__class__ is int:
+        return ids
+    if ids.__class__ is Neighbourhood:
+        try:
+            return ids._bits
+        except AttributeError:
+            bits = ids._bits = functools.reduce(operator.or_, map(_ONE.__lshift__, ids), 0)
+            return bits
+    return functools.reduce(operator.or_, map(_ONE.__lshift__, ids), 0)
 
 
 _ONE = 1
