@@ -47,6 +47,7 @@ of the 100-byte XBee payload on every frame.
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 import functools
@@ -158,7 +159,7 @@ def _tag(key: bytes, data: bytes) -> bytes:
     return mac.digest()[:TAG_BYTES]
 
 
-_OPENED: dict[tuple, Packet | None] = {}   # _verified's answers, oldest first
+_OPENED: OrderedDict[tuple, Packet | None] = OrderedDict()   # _verified's, oldest first
 _OPENED_LIMIT = 8192
 _UNKNOWN = object()
 
@@ -182,7 +183,7 @@ def _verified(key: bytes, source: int, destination: int, kind: int, sequence: in
 
 def _keep(question: tuple, opened: Packet | None) -> None:
     if len(_OPENED) >= _OPENED_LIMIT:
-        del _OPENED[next(iter(_OPENED))]
+        _OPENED.popitem(last=False)   # (a dict's first key is a scan past deleted ones)
     _OPENED[question] = opened
 
 
