@@ -34,7 +34,8 @@ def instrument(cost: dict, count: dict, sent: dict, why: dict) -> None:
     clock = time.process_time
     receive, step, rest = headless.receive, AgentBrain.step, AgentBrain.rest
 
-    def timed_receive(t, packet, brains):
+    def timed_receive(t, packet, heard):     # heard: a reception.Receivers
+        brains = heard.brains
         kind = KINDS.get(packet.kind, 'other kinds')
         if kind == 'flood':
             key = wire.routed_key(packet.payload)
@@ -43,7 +44,7 @@ def instrument(cost: dict, count: dict, sent: dict, why: dict) -> None:
         count[kind] += len(brains)
         sent[kind] += 1
         t0 = clock()
-        receive(t, packet, brains)
+        receive(t, packet, heard)
         cost[kind] += clock() - t0
 
     reason: dict[int, str] = {}    # brain -> why its next step is active
