@@ -94,13 +94,13 @@ def mask(ids: Set[int] | int) -> int:
 _ONE = 1
 
 
-def _members(mask: int) -> list[int]:
-    """The addresses whose bits are set in ``mask``, lowest first."""
+def _members(bits: int) -> list[int]:
+    """The addresses whose bits are set, lowest first."""
     out = []
-    while mask:
-        low = mask & -mask
+    while bits:
+        low = bits & -bits
         out.append(low.bit_length() - 1)
-        mask ^= low
+        bits ^= low
     return out
 
 
