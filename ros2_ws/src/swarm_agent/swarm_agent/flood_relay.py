@@ -82,13 +82,16 @@ def mask(ids: Set[int] | int) -> int:
     gives set algebra on a few dozen small integers cheaper than Python's own integers."""
     if ids.__class__ is int:
         return ids
-    if ids.__class__ is Neighbourhood:
+    kept = ids.__class__ is Neighbourhood
+    if kept:
         try:
             return ids._bits
         except AttributeError:
-            bits = ids._bits = functools.reduce(operator.or_, map(_ONE.__lshift__, ids), 0)
-            return bits
-    return functools.reduce(operator.or_, map(_ONE.__lshift__, ids), 0)
+            pass
+    bits = functools.reduce(operator.or_, map(_ONE.__lshift__, ids), 0)
+    if kept:
+        ids._bits = bits
+    return bits
 
 
 _ONE = 1

@@ -17,9 +17,10 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 from swarm_agent.dsdv import DsdvConfig, DsdvRouter, INFINITE_HOPS
-from swarm_agent.dsdv_receive import hear, takers_of
-from swarm_agent.frame_auth import auth_groups, FrameAuth, open_all
+from swarm_agent.dsdv_receive import hear
+from swarm_agent.frame_auth import FrameAuth, open_all
 from swarm_agent.packet import Kind, Packet
+from swarm_agent.reception import Receivers
 
 MISSION_RADIO_ID = 0xFFFE   # below BROADCAST (0xFFFF); no agent may use it
 ADVERT_KINDS = (int(Kind.DSDV_FULL), int(Kind.DSDV_INCREMENTAL))  # what the mission hears
@@ -38,11 +39,7 @@ class MeshListener:
                              f'agents ids below {node_id}')
         self.router = DsdvRouter(node_id, config)
         self.frames = 0
-        # What opening and routing ask of this one receiver, worked out once.
-        self._auths = [auth] if auth is not None else []
-        self._opening = auth_groups(self._auths) if auth is not None else None
-        self._routers = [self.router]
-        self._takers = takers_of(self._routers)
+        self._alone = Receivers((self,))   # what opening and routing ask of it, once
 
     @property
     def id(self) -> int:
@@ -52,11 +49,11 @@ class MeshListener:
         """A frame the mission's radio heard; only route adverts concern it."""
         if packet.kind in ADVERT_KINDS:
             if self.auth is not None:
-                packet = open_all(self._auths, packet, self._opening)[0]
+                packet = open_all(self._alone.auths, packet, self._alone.opening)[0]
                 if packet is None:
                     return
             self.frames += 1
-            hear(t, packet, self._routers, self._takers)
+            hear(t, packet, self._alone.routers, self._alone.takers())
 
     def alive(self) -> list[int]:
         """Agents the mission holds a finite route to, in id order."""

@@ -33,7 +33,8 @@ _AUTH, _ROUTER = attrgetter('auth'), attrgetter('router')   # per receiver, at C
 
 
 class Receivers:
-    """Brains that hear transmissions together (distinct), with what opening and routing
+    """Brains (or anything with an ``auth`` and a ``router``: the mission's radio) that
+    hear transmissions together (distinct), with what opening and routing
     ask of them worked out once: their keyrings' groups and replay rows
     (``frame_auth.auth_groups``) and their routers' ``dsdv_receive.Takers`` (at first use:
     floods do not need them). Valid while the brains keep their ``FrameAuth`` and router,
