@@ -9,6 +9,7 @@ import pathlib
 
 import numpy as np
 import pytest
+from scipy.spatial.distance import pdist
 from shapely.geometry import box
 
 from swarm_common.shapes import load_shape, Shape
@@ -17,6 +18,7 @@ from swarm_sim.metrics import (
     bottleneck_value,
     least_settling_time,
     optimal_assigned_paths,
+    SEPARATION_REACH,
     SeparationTracker,
     SettleTracker,
     trial_metrics,
@@ -98,6 +100,42 @@ def test_a_robot_passing_through_another_between_two_record_samples_is_caught():
     # At 50 Hz the pair is at most 0.01 m from dead centre at some step: ratio <= 0.05.
     assert caught['min_separation_ratio'] <= 0.05
     assert caught['contacts'] == 1               # one overlap, entered once
+
+
+def test_separation_is_the_least_ratio_over_every_living_pair_within_reach(kernels):
+    # The definition, by brute force over all pairs (scipy's pdist), on random crowds of
+    # two to sixty robots with some removed: the smallest distance / (r_i + r_j) among
+    # living pairs within SEPARATION_REACH of the largest summed radii, and the pairs
+    # below 1 counted once when they enter the overlap.
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        n = int(rng.integers(2, 61))
+        radii = rng.uniform(0.1, 0.5, n)
+        alive = rng.random(n) > 0.2
+        tracker = SeparationTracker()
+        entered = 0
+        before: set[tuple[int, int]] = set()
+        low_all = np.inf
+        for _ in range(3):
+            pos = rng.uniform(-2.0, 2.0, (n, 2)) * np.sqrt(n)
+            tracker.update(pos, radii, alive)
+            live = np.flatnonzero(alive)
+            reach = 2.0 * radii[live].max() * SEPARATION_REACH if len(live) else 0.0
+            now: set[tuple[int, int]] = set()
+            if len(live) >= 2:
+                i, j = np.triu_indices(len(live), 1)
+                d = pdist(pos[live])
+                near = d <= reach
+                ratio = d[near] / (radii[live][i[near]] + radii[live][j[near]])
+                if len(ratio):
+                    low_all = min(low_all, float(ratio.min()))
+                now = {(int(live[a]), int(live[b]))
+                       for a, b, r in zip(i[near], j[near], ratio) if r < 1.0}
+            entered += len(now - before)
+            before = now
+            assert tracker.overlapping_pairs() == sorted(now)
+        assert tracker.min_ratio == pytest.approx(low_all, rel=1e-12)
+        assert tracker.contacts == entered
 
 
 def test_contacts_count_each_entry_into_overlap_and_ignore_the_dead():
