@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from shapely.geometry import box
+from shapely.geometry import box, LineString
 
 from swarm_agent.packet import BROADCAST, Kind, Packet
 from swarm_sim.medium import FRAME_OVERHEAD_BYTES, MediumConfig, RadioMedium
@@ -42,6 +42,33 @@ def test_obstacle_between_two_robots_removes_their_link():
     # a frame from 0 never reaches 1 through the wall
     medium.transmit(0.0, _frame(0, 1))
     assert medium.deliver(1.0) == [] and medium.stats.dropped_range == 1
+
+
+def test_links_are_range_and_line_of_sight_on_random_crowds_as_robots_move(kernels):
+    # The definition pair by pair (distance <= range, the segment crossing no obstacle,
+    # neither radio dead) on random crowds, moved between updates so that the links
+    # change and then stay (the neighbour lists are rebuilt only when they change).
+    rng = np.random.default_rng(3)
+    walls = [box(-2.0, -8.0, 0.0, 8.0), box(10.0, 10.0, 14.0, 12.0)]
+    for _ in range(40):
+        n = int(rng.integers(2, 40))
+        pos = rng.uniform(-30.0, 30.0, (n, 2))
+        medium = RadioMedium(MediumConfig(), np.random.default_rng(0), walls)
+        ids = list(range(100, 100 + n))
+        dead = {int(d) for d in rng.choice(ids, size=int(rng.integers(0, 3)))}
+        for d in dead:
+            medium.disable_radio(d)
+        for _ in range(3):
+            if rng.random() < 0.5:
+                pos = pos + rng.normal(0.0, 3.0, pos.shape)
+            medium.update_positions(ids, pos)
+            for a in range(n):
+                want = [ids[b] for b in range(n) if b != a
+                        and ids[a] not in dead and ids[b] not in dead
+                        and np.hypot(*(pos[a] - pos[b])) <= 25.0
+                        and not any(w.intersects(LineString([pos[a], pos[b]]))
+                                    for w in walls)]
+                assert medium.neighbours(ids[a]) == want
 
 
 def test_dead_radio_has_no_links_and_hears_nothing():
