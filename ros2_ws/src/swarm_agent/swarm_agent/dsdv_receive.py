@@ -269,17 +269,21 @@ def _learn_neighbourhood(routers: Sequence[DsdvRouter], neighbour: int, ones: fr
     per frame."""
     # id of a known set -> (the set, kept alive so its id is not reused; what it becomes)
     outcome: dict[int, tuple[frozenset[int], frozenset[int]]] = {}
+    last = learnt = None      # the set the previous receiver knew: most follow it
     for r in routers:
-        known = r.two_hop.get(neighbour)
+        two_hop = r.two_hop
+        known = two_hop.get(neighbour)
         if known is None:
-            known = r.two_hop[neighbour] = _NO_NEIGHBOURS
-        _, learnt = outcome.get(id(known)) or (None, None)
-        if learnt is None:
-            learnt = (known if ones <= known and known.isdisjoint(others)
-                      else Neighbourhood((known | ones) - others))
-            outcome[id(known)] = (known, learnt)
+            known = two_hop[neighbour] = _NO_NEIGHBOURS
+        if known is not last:
+            last = known
+            _, learnt = outcome.get(id(known)) or (None, None)
+            if learnt is None:
+                learnt = (known if ones <= known and known.isdisjoint(others)
+                          else Neighbourhood((known | ones) - others))
+                outcome[id(known)] = (known, learnt)
         if learnt is not known:
-            r.two_hop[neighbour] = learnt
+            two_hop[neighbour] = learnt
             r._view_changed()
 
 

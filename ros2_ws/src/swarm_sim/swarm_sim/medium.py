@@ -262,7 +262,10 @@ class RadioMedium:
         if not receivers:
             return
         keep = self.rng.random(len(receivers)) >= self.config.loss
-        kept = [r for r, ok in zip(receivers, keep.tolist()) if ok]
+        # No loss drawn: the neighbour list itself (never changed; one is made anew
+        # when the links change).
+        kept = receivers if keep.all() else [r for r, ok in zip(receivers, keep.tolist())
+                                             if ok]
         self.stats.dropped_loss += len(receivers) - len(kept)
         if kept:
             self._counter += 1
