@@ -77,7 +77,7 @@ from swarm_agent.setpoint import (
     velocity_setpoint,
 )
 from swarm_agent.stall import StallDetector
-from swarm_common.goals import Goal
+from swarm_common.goals import Goal, TypeGoals
 from swarm_common.robot_types import RobotType
 from swarm_common.shapes import Shape
 from swarm_mission.contour import sample_boundary
@@ -146,7 +146,8 @@ class AgentBrain:
         self._obstacle_samples: np.ndarray | None = None
         self.goals: list[Goal] = []
         self.goal_version = 0
-        self._my_goals: list[Goal] = []
+        self._mine = TypeGoals.of((), config.agent_type)   # this type's goals, as arrays
+        self._my_goals: Sequence[Goal] = ()
         # Consensus state
         self._rows: dict[int, dict[int, CostRow]] = {}     # round -> agent -> row
         self.goal_id = -1
@@ -180,8 +181,8 @@ class AgentBrain:
             return
         self.goals = list(goals)
         self.goal_version = version
-        self._my_goals = sorted((g for g in goals if g.type == self.config.agent_type),
-                                key=lambda g: g.id)
+        self._mine = TypeGoals.of(goals, self.config.agent_type)
+        self._my_goals = self._mine.goals
         self._rows.clear()
         classes = any(g.beacon for g in self._my_goals)
         if not any(g.id == self.goal_id
@@ -515,9 +516,8 @@ class AgentBrain:
         self._setpoint = np.zeros(2)
 
     def _report_costs(self, rnd: int) -> None:
-        goals = np.array([[g.x, g.y] for g in self._my_goals])
-        costs = class_costs(self._graph.cost_row(self.localizer.position, goals),
-                            [g.beacon for g in self._my_goals], self.config.is_beacon)
+        costs = class_costs(self._graph.cost_row(self.localizer.position, self._mine.positions),
+                            self._mine.beacon, self.config.is_beacon)
         row = CostRow.from_costs(self.config.agent_id, self.config.agent_type,
                                  self.goal_version, rnd, costs)
         self._store_row(row)
@@ -542,13 +542,13 @@ class AgentBrain:
         if not rows or self.config.agent_id not in rows:
             return
         ordered = sorted(rows.items())
-        used = b''.join(aid.to_bytes(2, 'little') + row.encode() for aid, row in ordered)
-        goal_ids = tuple(g.id for g in self._my_goals)
+        used = b''.join([row.keyed for _, row in ordered])
+        goal_ids = self._mine.ids
         # The rows' bytes and the goal ids fix the problem: one solve per process for all
         # the agents holding the same rows (assignment.AssignmentCache).
         result = SHARED_ASSIGNMENTS.get((used, goal_ids), lambda: assign(
             {aid: (row.agent_type, row.costs) for aid, row in ordered},
-            np.array([g.type for g in self._my_goals]), np.array(goal_ids)))
+            self._mine.types, np.array(goal_ids)))
         digest = zlib.crc32(used)
         self.goal_id = int(result.get(self.config.agent_id, -1))
         self.assignment_round = rnd

@@ -118,7 +118,7 @@ class CostRow:
         q = np.where(np.isfinite(costs),
                      np.minimum(np.round(costs / COST_QUANTUM_M), COST_UNREACHABLE - 1),
                      COST_UNREACHABLE).astype(np.int64)
-        return cls(agent_id, agent_type, goal_version, round_, tuple(int(v) for v in q))
+        return cls(agent_id, agent_type, goal_version, round_, tuple(q.tolist()))
 
     @property
     def costs(self) -> np.ndarray:
@@ -147,6 +147,12 @@ class CostRow:
         return _ROW_HEADER.pack(MSG_COST_ROW, self.agent_id, self.agent_type,
                                 self.goal_version, self.round,
                                 count | (_WIDE if wide else 0)) + body
+
+    @functools.cached_property
+    def keyed(self) -> bytes:
+        """The agent id (2 bytes) and the encoding: what the assignment digest is computed
+        over, row after row (``AgentBrain._assign``)."""
+        return self.agent_id.to_bytes(2, 'little') + self._encoded
 
     @classmethod
     def decode(cls, data: bytes) -> CostRow:

@@ -46,6 +46,24 @@ def goal_radii(goals: Sequence[Goal]) -> np.ndarray:
     return np.array([g.radius for g in goals], dtype=float)
 
 
+@dataclass(frozen=True)
+class TypeGoals:
+    """The goals of one robot type in id order, with the arrays an agent's cost rows and
+    assignment read at every consensus round (built once per goal list)."""
+
+    goals: tuple[Goal, ...]
+    positions: np.ndarray     # (n, 2) centres
+    beacon: np.ndarray        # (n,) bool: beacon goals
+    ids: tuple[int, ...]
+    types: np.ndarray         # (n,) int: their type, every one alike
+
+    @classmethod
+    def of(cls, goals: Sequence[Goal], agent_type: int) -> TypeGoals:
+        mine = tuple(sorted((g for g in goals if g.type == agent_type), key=lambda g: g.id))
+        return cls(mine, goal_positions(mine), np.array([g.beacon for g in mine], dtype=bool),
+                   tuple(g.id for g in mine), np.array([g.type for g in mine], dtype=int))
+
+
 def goals_to_json(goals: Sequence[Goal]) -> dict:
     """The ``goals.json`` document: ``{"goals": [{"x", "y", "type", "radius", "id",
     "beacon"}, ...]}``."""
