@@ -112,3 +112,40 @@ def test_receivers_that_knew_different_neighbour_sets_each_learn_their_own():
     assert [r.two_hop[3] for r in routers] == [{5, 6}, {5, 6}, {5, 6, 8}, {5, 6}]
     assert routers[0].two_hop[3] is knew[0]          # unchanged: the same set
     assert [bool(r._silent_after) for r in routers] == [True, True, False, False]
+
+
+def test_receivers_that_heard_a_dump_before_learn_again_after_any_change():
+    """The receivers of a neighbour's dumps are not visited again while nothing changed
+    what they know of it: on a random run of dumps from three neighbours to overlapping
+    receiver lists (kept and fresh), with links breaking, every router holds exactly
+    what the definition gives: the one-hop adverts added, the others taken out, all
+    forgotten when the link breaks."""
+    import numpy as np
+
+    from swarm_agent.wire import Advert, encode_adverts
+
+    rng = np.random.default_rng(11)
+    routers = {i: DsdvRouter(i) for i in range(1, 9)}
+    kept = [[routers[i] for i in ids] for ids in ((1, 2, 3), (2, 3, 4, 5), (6, 7, 8))]
+    want: dict[int, dict[int, set[int]]] = {i: {} for i in routers}
+    for step in range(400):
+        sender = int(rng.choice([20, 21, 22]))
+        if rng.random() < 0.1:                       # a link breaks at one receiver
+            r = routers[int(rng.integers(1, 9))]
+            r._break_link(sender)
+            want[r.id].pop(sender, None)
+            continue
+        heard = (kept[int(rng.integers(0, 3))] if rng.random() < 0.8
+                 else [routers[i] for i in sorted(rng.choice(8, 3, replace=False) + 1)])
+        adverts = [Advert(sender, 0, 2 * step)] + [
+            Advert(int(d), int(rng.choice([1, 1, 2, 255])), 2 * step)
+            for d in rng.choice(np.arange(30, 36), int(rng.integers(0, 4)), replace=False)]
+        frame = encode_adverts(2 * step, adverts)[0]
+        hear(float(step), Packet(sender, BROADCAST, int(Kind.DSDV_FULL), step, 1, frame),
+             heard)
+        ones = {a.destination for a in adverts[1:] if a.hops == 1}
+        others = {a.destination for a in adverts[1:] if a.hops != 1} - ones
+        for r in heard:
+            want[r.id][sender] = (want[r.id].get(sender, set()) | ones) - others
+        for i, r in routers.items():
+            assert {k: set(v) for k, v in r.two_hop.items()} == want[i], (step, i)

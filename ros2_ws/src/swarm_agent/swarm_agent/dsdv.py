@@ -44,7 +44,13 @@ import math
 import numpy as np
 
 from swarm_agent import flood_relay, wire
-from swarm_agent.dsdv_receive import Delivered, hear, RouterOutput, scalar_settings
+from swarm_agent.dsdv_receive import (
+    Delivered,
+    forget_neighbourhood,
+    hear,
+    RouterOutput,
+    scalar_settings,
+)
 from swarm_agent.neighbour_table import NeighbourTable
 from swarm_agent.packet import BROADCAST, Kind, Packet
 from swarm_agent.route_table import (
@@ -264,7 +270,7 @@ class DsdvRouter:
     def _break_link(self, neighbour: int) -> None:
         """Fig. 3.9: every route through the neighbour gets hops = inf and an odd sequence."""
         self.neighbour_table.forget(neighbour)
-        self.two_hop.pop(neighbour, None)
+        forget_neighbourhood(self, neighbour)
         self._view_changed()
         if self.route_table.break_link(neighbour):
             self._dirty = True

@@ -257,6 +257,23 @@ def _merged(groups: list[_Group], neighbour: int, adverts: np.ndarray) -> None:
 
 
 _NO_NEIGHBOURS = Neighbourhood()
+# Per neighbour address: how many times a router of this process changed, added or
+# dropped what it knows of that neighbour's neighbours (``two_hop``).
+_EDITS: dict[int, int] = {}
+# (identity of a receiver list, neighbour) -> (the list, kept alive so that its id is
+# not reused; what all of them and what any of them knew of the neighbour after its last
+# dump there; _EDITS of the neighbour then). While no router's knowledge of the
+# neighbour has changed since, each of them still holds the first and no more than the
+# second.
+_LEARNT: dict[tuple[int, int], tuple[Sequence[DsdvRouter], frozenset[int], frozenset[int],
+                                     int]] = {}
+_LEARNT_LIMIT = 4096
+
+
+def forget_neighbourhood(router: DsdvRouter, neighbour: int) -> None:
+    """The router no longer knows the neighbour's neighbours (its link broke)."""
+    if router.two_hop.pop(neighbour, None) is not None:
+        _EDITS[neighbour] = _EDITS.get(neighbour, 0) + 1
 
 
 def _learn_neighbourhood(routers: Sequence[DsdvRouter], neighbour: int, ones: frozenset[int],
@@ -266,17 +283,26 @@ def _learn_neighbourhood(routers: Sequence[DsdvRouter], neighbour: int, ones: fr
     knows of it, ``others`` (at more hops) taken out; a receiver whose knowledge changed
     renews its relay decisions. Each receiver's knowledge is an immutable set, so the
     receivers that knew the same set (most of them) share one result, computed once
-    per frame."""
+    per frame. When nothing changed what the receivers of a list know of the neighbour
+    since its last dump to them, and all of them already hold its one-hop adverts and
+    none of its others (a neighbour's dumps mostly repeat), none of them is visited."""
+    key = (id(routers), neighbour)
+    edits = _EDITS.get(neighbour, 0)
+    last = _LEARNT.get(key)
+    if (last is not None and last[0] is routers and last[3] == edits
+            and ones <= last[1] and last[2].isdisjoint(others)):
+        return    # what each receiver knows already holds ones and none of the others
     # id of a known set -> (the set, kept alive so its id is not reused; what it becomes)
     outcome: dict[int, tuple[frozenset[int], frozenset[int]]] = {}
-    last = learnt = None      # the set the previous receiver knew: most follow it
+    seen = learnt = None      # the set the previous receiver knew: most follow it
     for r in routers:
         two_hop = r.two_hop
         known = two_hop.get(neighbour)
         if known is None:
             known = two_hop[neighbour] = _NO_NEIGHBOURS
-        if known is not last:
-            last = known
+            edits += 1
+        if known is not seen:
+            seen = known
             _, learnt = outcome.get(id(known)) or (None, None)
             if learnt is None:
                 learnt = (known if ones <= known and known.isdisjoint(others)
@@ -285,6 +311,13 @@ def _learn_neighbourhood(routers: Sequence[DsdvRouter], neighbour: int, ones: fr
         if learnt is not known:
             two_hop[neighbour] = learnt
             r._view_changed()
+            edits += 1
+    _EDITS[neighbour] = edits
+    if len(_LEARNT) >= _LEARNT_LIMIT:
+        _LEARNT.clear()
+    learnt_sets = [s for _, s in outcome.values()]
+    _LEARNT[key] = (routers, frozenset.intersection(*learnt_sets),
+                    frozenset.union(*learnt_sets), edits)
 
 
 def _dump_terms(neighbour: int, adverts: tuple[Advert, ...]) -> tuple[
