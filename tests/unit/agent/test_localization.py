@@ -641,9 +641,10 @@ def test_a_restarted_agent_learns_the_velocity_its_robot_drives_at():
 
 
 def test_filter_kernels_compiled_agree_with_their_source():
-    """The prediction and the Joseph-form update (``kalman._propagate``, ``_update``)
-    compiled give the numbers of their Python source to rounding (the compiled matrix
-    products add in another order), with and without consider parameters."""
+    """The prediction of a stack of filters and the Joseph-form update
+    (``kalman._propagate``, ``_update``) compiled give the numbers of their Python source
+    to rounding (the compiled matrix products add in another order), with and without
+    consider parameters."""
     from swarm_agent.kalman import _propagate, _update
     from swarm_common import jit
     rng = np.random.default_rng(5)
@@ -656,11 +657,39 @@ def test_filter_kernels_compiled_agree_with_their_source():
         f[:2, 2:4] = 0.02 * np.eye(2)
         for kernel, args in ((_update, (x, p, cross, h, rng.normal(size=len(h)),
                                         0.3 * np.eye(len(h)))),
-                             (_propagate, (f, rng.normal(size=(6, 2)), 1e-4 * np.eye(6), x, p,
-                                           cross, rng.normal(size=2), 0.99))):
+                             (_propagate, (f, rng.normal(size=(6, 2)), 1e-4 * np.eye(6),
+                                           np.stack([x, -x]), np.stack([p, 2.0 * p]),
+                                           np.stack([cross, 0.5 * cross]),
+                                           rng.normal(size=(2, 2)), 0.99))):
             jit.use_python(True)
             source = kernel(*args)
             jit.use_python(False)
             for got, want in zip(kernel(*args), source):
                 assert got.shape == want.shape
                 np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+
+
+def test_filters_predicted_together_are_predicted_as_each_alone(kernels):
+    """``kalman.predict_all`` over filters of mixed models and consider widths (one
+    kernel call per model and width) gives each filter, bit for bit, what its own
+    ``predict`` gives; a filter that has not been ranged keeps no consider columns."""
+    from swarm_agent.kalman import KalmanFilter, predict_all
+    rng = np.random.default_rng(8)
+    for _ in range(20):
+        alone, together = [], []
+        for k in range(12):
+            kw = dict(position=rng.normal(size=2), accel_noise_std=0.01 * (1 + k % 2),
+                      consider_time_s=30.0 if k % 3 else np.inf, estimate_bias=k != 5)
+            cross = rng.normal(size=(4 if k == 5 else 6, 2 * int(rng.integers(0, 3))))
+            for filters in (alone, together):
+                filters.append(KalmanFilter(**kw))
+                filters[-1].cross = cross.copy()
+        dts = [0.02 if k != 7 else 0.0 for k in range(12)]
+        accels = rng.normal(size=(12, 2))
+        for _ in range(3):
+            for kf, dt, a in zip(alone, dts, accels):
+                kf.predict(dt, a)
+            predict_all(together, dts, accels)
+        for a, b in zip(alone, together):
+            assert a.x.tobytes() == b.x.tobytes() and a.P.tobytes() == b.P.tobytes()
+            assert a.cross.tobytes() == b.cross.tobytes() and a.cross.shape == b.cross.shape

@@ -192,16 +192,25 @@ class AgentBrain:
 
     def on_imu(self, t: float, accel: np.ndarray) -> None:
         """Accelerometer sample in the map frame (m/s^2): Kalman prediction (eq. 3.30)."""
-        accel = np.asarray(accel, dtype=float)
-        if accel.shape != (2,) or not (math.isfinite(accel[0]) and math.isfinite(accel[1])):
+        AgentBrain.take_imu(t, (self,), np.asarray(accel, dtype=float).reshape(1, -1))
+
+    @staticmethod
+    def take_imu(t: float, brains: Sequence[AgentBrain], accels: np.ndarray) -> None:
+        """``on_imu`` for each of ``brains`` with its row of ``accels`` (n, 2): one
+        prediction for all (``Localizer.predict_all``); rows not finite are dropped."""
+        if accels.shape != (len(brains), 2):
             return
-        self.localizer.predict(t, accel)
-        if self._stall.imu(t, accel, self.localizer.kf.bias):
-            taken = self.localizer.stood_still()
-            self._stall.stands(t, taken)
-            if taken:
-                self.loop.reset()
-                self._avoid_due = True     # the sidestep turns the setpoint now
+        finite = np.isfinite(accels).all(axis=1)
+        if not finite.all():
+            brains, accels = [b for b, ok in zip(brains, finite) if ok], accels[finite]
+        Localizer.predict_all(t, [b.localizer for b in brains], accels)
+        for brain, accel in zip(brains, accels):
+            if brain._stall.imu(t, accel, brain.localizer.kf.bias):
+                taken = brain.localizer.stood_still()
+                brain._stall.stands(t, taken)
+                if taken:
+                    brain.loop.reset()
+                    brain._avoid_due = True     # the sidestep turns the setpoint now
 
     def on_gps(self, t: float, position: np.ndarray, std: float) -> None:
         """Absolute position fix; only beacons have one."""
@@ -423,10 +432,6 @@ class AgentBrain:
         for k in stale:
             del self.neighbours[k]
 
-    def _fresh_neighbours(self, t: float) -> dict[int, NeighbourInfo]:
-        self._drop_stale(t)
-        return {k: n.info for k, n in self.neighbours.items()}
-
     def _localize(self, t: float) -> None:
         """Localization tick (3.1.1, 3.1.3): trilaterate against beacon neighbours, and
         against secondary anchors when this agent is not one (localization.py)."""
@@ -440,9 +445,6 @@ class AgentBrain:
         self.localizer.localize(t, beacons,
                                 self.localizer.position - self._position_at_ranges,
                                 secondary=anchors)
-
-    def _round(self, t: float) -> int:
-        return int(math.floor(t / self.config.consensus_period_s + 1e-9))
 
     def _outer(self, t: float) -> None:
         """The 2 Hz loop: cost report, assignment, setpoint (3.2.2.2, 3.2.4)."""
@@ -476,7 +478,7 @@ class AgentBrain:
             self._parked = False
             self._setpoint = self._forces_setpoint(t)
             return
-        rnd = self._round(t)
+        rnd = int(math.floor(t / self.config.consensus_period_s + 1e-9))   # the round
         if rnd != self._last_round:
             self._last_round = rnd
             if self._my_goals:
@@ -563,15 +565,14 @@ class AgentBrain:
         if self._proximity is not None and \
                 t - self._proximity_at <= self.config.proximity_stale_s:
             return self._proximity
-        neighbours = self._fresh_neighbours(t)
-        if not neighbours:
+        self._drop_stale(t)
+        if not self.neighbours:
             return np.zeros((0, 2)), np.zeros(0)
-        pos = np.array([n.position for n in neighbours.values()], dtype=float)
-        radii = np.array([self._radius_of(n.agent_type) for n in neighbours.values()])
+        infos = [n.info for n in self.neighbours.values()]
+        pos = np.array([n.position for n in infos], dtype=float)
+        radii = np.array([self.config.type_radii.get(n.agent_type, self.robot.coverage_radius)
+                          for n in infos])
         return pos - self.localizer.position, radii
-
-    def _radius_of(self, agent_type: int) -> float:
-        return self.config.type_radii.get(agent_type, self.robot.coverage_radius)
 
     def _setpoint_towards(self, target: np.ndarray) -> np.ndarray:
         position = self.localizer.position

@@ -55,6 +55,7 @@ import math
 import sys
 
 from geometry_msgs.msg import TransformStamped
+import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import ROSClock
 from rclpy.event_handler import EventHandler
@@ -76,6 +77,7 @@ from swarm_agent.agent_node import (
     RadioBatcher,
     set_brain_parameters,
 )
+from swarm_agent.brain import AgentBrain
 from swarm_agent.brain_config import BrainConfigError
 from swarm_agent.conversions import sensor_batch_from_msg, SensorInputs, stamp_seconds
 from swarm_agent.frame_auth import ReplayStore
@@ -306,9 +308,13 @@ class ComposedAgents(Node):
         """Hand each agent of this process its part of a batch stamped ``stamp`` (s)."""
         agents = self.agents
         imu, ranges, proximity, rx, gps = inputs
-        for agent_id, ax, ay in imu:
-            if agent_id in agents:
-                agents[agent_id].on_imu_sample(stamp, ax, ay)
+        taking = [(agents[a], ax, ay) for a, ax, ay in imu if a in agents]
+        if taking and stamp > 0.0:   # one Kalman prediction for all (AgentBrain.take_imu)
+            AgentBrain.take_imu(stamp, [node.brain for node, _, _ in taking],
+                                np.array([(ax, ay) for _, ax, ay in taking], dtype=float))
+        else:
+            for node, ax, ay in taking:
+                node.on_imu_sample(stamp, ax, ay)
         for agent_id, x, y, std in gps:
             if agent_id in agents:
                 agents[agent_id].on_gps_fix(x, y, std)

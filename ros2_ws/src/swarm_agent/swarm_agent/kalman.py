@@ -79,6 +79,8 @@ class KalmanFilter:
         self._f, self._g, self._q, self._dt = f, g, q, dt
         tau = self.consider_time_s
         self._decay = math.exp(-dt / tau) if tau > 0 else 0.0
+        # Filters with equal keys hold equal F, G, Q and decay (``predict_all``).
+        self._model_key = (dt, self.q, self.bias_walk, self.estimate_bias, tau)
 
     @property
     def bias(self) -> np.ndarray:
@@ -87,13 +89,7 @@ class KalmanFilter:
 
     def predict(self, dt: float, accel) -> None:
         """Propagate by ``dt`` seconds with the measured acceleration (eqs. 3.30-3.33)."""
-        if dt <= 0:
-            return
-        if self._dt is None or abs(dt - self._dt) > 1e-9:
-            self._model(dt)
-        self.x, self.P, self.cross = _propagate(self._f, self._g, self._q, self.x, self.P,
-                                                self.cross, np.asarray(accel, float),
-                                                self._decay)
+        predict_all((self,), (dt,), np.asarray(accel, float).reshape(1, 2))
 
     def innovation_distance(self, z, R) -> float:
         """Squared Mahalanobis distance of a position fix from the prediction.
@@ -244,20 +240,53 @@ class KalmanFilter:
         self.update(self._h_velocity, z, R)
 
 
+def predict_all(filters: Sequence[KalmanFilter], dts: Sequence[float],
+                accels: np.ndarray) -> None:
+    """Propagate each filter by its ``dt`` (s) with its row of ``accels`` (n, 2), the
+    measured accelerations (eqs. 3.30-3.33; ``dt`` <= 0: left as it is).
+
+    One function for one filter (``KalmanFilter.predict``, an agent alone) or many (the
+    agents of a process, at one IMU sample): the filters of one model (equal F, G, Q and
+    consider decay) holding as many consider columns are stacked and propagated in one
+    kernel call. Each gets rows of new arrays, as one call each would give it new arrays.
+    """
+    groups: dict[tuple, list[int]] = {}
+    for i, (kf, dt) in enumerate(zip(filters, dts)):
+        if dt <= 0:
+            continue
+        if kf._dt is None or abs(dt - kf._dt) > 1e-9:
+            kf._model(dt)
+        groups.setdefault((kf._model_key, kf.cross.shape[1]), []).append(i)
+    for rows in groups.values():
+        kfs = [filters[i] for i in rows]
+        model = kfs[0]
+        xs, ps, crosses = _propagate(
+            model._f, model._g, model._q, np.array([kf.x for kf in kfs]),
+            np.array([kf.P for kf in kfs]), np.array([kf.cross for kf in kfs]),
+            accels[rows] if len(rows) < len(accels) else accels, model._decay)
+        for kf, x, p, cross in zip(kfs, xs, ps, crosses):
+            kf.x, kf.P, kf.cross = x, p, cross
+
+
 _N, _M = np.zeros(6), np.zeros((6, 6))
 
 
-@kernel(_M, np.zeros((6, 2)), _M, _N, _M, np.zeros((6, 2)), np.zeros(2), 1.0)
-def _propagate(f: np.ndarray, g: np.ndarray, q: np.ndarray, x: np.ndarray, p: np.ndarray,
-               cross: np.ndarray, accel: np.ndarray, decay: float) -> tuple[
+@kernel(_M, np.zeros((6, 2)), _M, _N[None], _M[None], np.zeros((1, 6, 2)), np.zeros((1, 2)),
+        1.0)
+def _propagate(f: np.ndarray, g: np.ndarray, q: np.ndarray, xs: np.ndarray, ps: np.ndarray,
+               crosses: np.ndarray, accels: np.ndarray, decay: float) -> tuple[
                    np.ndarray, np.ndarray, np.ndarray]:
-    """The prediction (eqs. 3.30-3.33): x, P and the consider covariance ``cross``
-    propagated by F, G, Q with the measured acceleration (``KalmanFilter.predict``)."""
-    x = f @ x + g @ accel
-    p = f @ p @ f.T + q
-    if cross.shape[1] > 0:
-        cross = (f @ cross) * decay
-    return x, p, cross
+    """The prediction (eqs. 3.30-3.33) of filters of one model: each row's x, P and
+    consider covariance ``cross`` propagated by F, G, Q with its measured acceleration
+    (``predict_all``)."""
+    xs_out, ps_out = np.empty_like(xs), np.empty_like(ps)
+    crosses_out = np.empty_like(crosses) if crosses.shape[2] > 0 else crosses
+    for i in range(xs.shape[0]):
+        xs_out[i] = f @ xs[i] + g @ accels[i]
+        ps_out[i] = f @ ps[i] @ f.T + q
+        if crosses.shape[2] > 0:
+            crosses_out[i] = (f @ crosses[i]) * decay
+    return xs_out, ps_out, crosses_out
 
 
 @kernel(_N, _M, np.zeros((6, 2)), np.zeros((2, 6)), np.zeros(2), np.eye(2))

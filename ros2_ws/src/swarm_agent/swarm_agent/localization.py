@@ -61,7 +61,7 @@ from swarm_agent.anchors import (
     Row,
     usable_rows,
 )
-from swarm_agent.kalman import KalmanFilter
+from swarm_agent.kalman import KalmanFilter, predict_all
 from swarm_agent.trilateration import DegenerateGeometryError, trilaterate
 from swarm_common.parameters import tunable
 
@@ -252,9 +252,16 @@ class Localizer:
 
     def predict(self, t: float, accel) -> None:
         """IMU sample at time ``t`` (map-frame acceleration, m/s^2)."""
-        if self._t is not None:
-            self.kf.predict(t - self._t, accel)
-        self._t = t
+        Localizer.predict_all(t, (self,), np.asarray(accel, float).reshape(1, 2))
+
+    @staticmethod
+    def predict_all(t: float, localizers: Sequence[Localizer], accels: np.ndarray) -> None:
+        """``predict`` for each of ``localizers`` with its row of ``accels`` (n, 2), in one
+        call for all (``kalman.predict_all``)."""
+        predict_all([loc.kf for loc in localizers],
+                    [0.0 if loc._t is None else t - loc._t for loc in localizers], accels)
+        for loc in localizers:
+            loc._t = t
 
     def set_state(self, position, velocity, position_std: float,
                   velocity_std: float) -> None:

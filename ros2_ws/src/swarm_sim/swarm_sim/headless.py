@@ -340,8 +340,9 @@ class HeadlessSwarm:
                 receive(t, packet, heard)
         t = readings.t
         if readings.imu is not None:
-            for i in readings.living:
-                brains[i].on_imu(t, readings.imu[i])
+            # Every living brain's sample in one call (one Kalman prediction for all).
+            living = readings.living
+            AgentBrain.take_imu(t, [brains[i] for i in living], readings.imu[living])
         for i, ranges in readings.ranges or ():
             brains[i].on_ranges(t, ranges)
         if readings.proximity is not None:
