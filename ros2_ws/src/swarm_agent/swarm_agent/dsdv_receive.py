@@ -316,8 +316,11 @@ def _learn_neighbourhood(routers: Sequence[DsdvRouter], neighbour: int, ones: fr
     if len(_LEARNT) >= _LEARNT_LIMIT:
         _LEARNT.clear()
     learnt_sets = [s for _, s in outcome.values()]
-    _LEARNT[key] = (routers, frozenset.intersection(*learnt_sets),
-                    frozenset.union(*learnt_sets), edits)
+    if len(learnt_sets) == 1:   # all of them know one set (a router alone: always)
+        _LEARNT[key] = (routers, learnt_sets[0], learnt_sets[0], edits)
+    else:
+        _LEARNT[key] = (routers, frozenset.intersection(*learnt_sets),
+                        frozenset.union(*learnt_sets), edits)
 
 
 def _dump_terms(neighbour: int, adverts: tuple[Advert, ...]) -> tuple[
