@@ -211,6 +211,7 @@ def _separation(positions: np.ndarray, radii: np.ndarray, alive: np.ndarray,
     n = positions.shape[0]
     reach2 = reach * reach
     low = np.inf
+    over = np.empty(n * (n - 1) // 2, dtype=np.int64)
     count = 0
     for i in range(n):
         if not alive[i]:
@@ -226,23 +227,9 @@ def _separation(positions: np.ndarray, radii: np.ndarray, alive: np.ndarray,
                 if ratio < low:
                     low = ratio
                 if ratio < 1.0:
+                    over[count] = i * n + j
                     count += 1
-    over = np.empty(count, dtype=np.int64)
-    if count:
-        k = 0
-        for i in range(n):
-            if not alive[i]:
-                continue
-            for j in range(i + 1, n):
-                if not alive[j]:
-                    continue
-                dx = positions[i, 0] - positions[j, 0]
-                dy = positions[i, 1] - positions[j, 1]
-                d2 = dx * dx + dy * dy
-                if d2 <= reach2 and np.sqrt(d2) / (radii[i] + radii[j]) < 1.0:
-                    over[k] = i * n + j
-                    k += 1
-    return low, over
+    return low, over[:count].copy()
 
 
 # Mean distance from the points of a regular hexagon of area a to its centre, over sqrt(a):
