@@ -105,3 +105,19 @@ def test_a_node_that_refused_its_configuration_is_not_restarted(tmp_path, monkey
                           parameters={'refuse': True}))
     assert _wait_crash(children) == 'agent_5'
     assert 'agent_5' not in children.respawns and capsys.readouterr().err == ''
+
+
+
+def test_the_new_log_exists_when_the_restart_is_announced(tmp_path, monkeypatch):
+    """Whoever reads the process's log on the 'started again' line finds the new run's
+    file (a restart test read it between the old log's rename and the new one's open)."""
+    children = _children(tmp_path, monkeypatch)
+    log = tmp_path / 'logs' / 'agent_5.log'
+    seen: list[bool] = []
+
+    def announce(*args, **kwargs) -> None:
+        seen.append(log.is_file())
+    monkeypatch.setattr(launcher, 'print', announce, raising=False)
+    children.run(NodeSpec('fakepkg', 'target', 'agent_5', respawn=True))
+    assert _wait_crash(children) == 'agent_5'
+    assert seen == [True] * RESPAWN_RETRIES

@@ -127,9 +127,12 @@ class Children:
         log = self.log_dir / f'{name}.log'
         if log.exists():
             log.rename(self.log_dir / f'{name}.run{count}.log')
+        self.run(spec)
+        # The new run's log exists when the line below says it started (a forked child
+        # opens it itself, later); the child truncates this empty file.
+        log.touch()
         print(f'launch_swarm: {name} exited with code {code}; started again '
               f'({count}/{RESPAWN_RETRIES})', file=sys.stderr, flush=True)
-        self.run(spec)
 
     def tail(self, name: str, lines: int = 15) -> str:
         text = (self.log_dir / f'{name}.log').read_text(encoding='utf-8', errors='replace')
