@@ -30,7 +30,7 @@ def _mesh() -> list[DsdvRouter]:
 def _state(router: DsdvRouter):
     return (router.sequence, {d: vars(r) for d, r in router.table.items()},
             dict(router.heard), {k: set(v) for k, v in router.two_hop.items()},
-            dict(router.stats), list(router._seen))
+            dict(router.stats), router.remembered())
 
 
 FRAMES = {

@@ -35,7 +35,6 @@ Malformed, truncated or unknown frames are counted in ``stats`` and dropped.
 
 from __future__ import annotations
 
-from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
 import logging
@@ -147,13 +146,22 @@ class DsdvRouter:
         self._next_expiry = math.inf
         self._dirty = False
         self._wake = 0.0   # earliest of the three timers above: before it, tick() is idle
-        self._seen: OrderedDict[tuple[int, int], None] = OrderedDict()
+        # The flood keys it handled, the store's (flood_memory): copies are dropped.
+        self._floods = self.route_table.store.floods
+        self._floods.memory[self.route_table.row] = self.config.dedup_memory
         self._partial: dict[tuple[int, int, int], tuple[float, dict[int, bytes]]] = {}
-        self.stats: dict[str, int] = {}
+        self._stats: dict[str, int] = {}
 
     # ------------------------------------------------------------------ helpers
     def _count(self, key: str, n: int = 1) -> None:
-        self.stats[key] = self.stats.get(key, 0) + n
+        self._stats[key] = self._stats.get(key, 0) + n
+
+    @property
+    def stats(self) -> dict[str, int]:
+        """Frames counted by what became of them (a copy), with the flood copies
+        dropped as ``duplicates``."""
+        duplicates = int(self._floods.duplicates[self.route_table.row])
+        return {**self._stats, 'duplicates': duplicates} if duplicates else dict(self._stats)
 
     def _malformed(self, kind: Kind, source: int, exc: WireError) -> None:
         self._count('rejected_malformed')
@@ -343,12 +351,11 @@ class DsdvRouter:
 
     def _remember(self, key: tuple[int, int]) -> bool:
         """Record a flood id; False if it was already seen."""
-        if key in self._seen:
-            return False
-        self._seen[key] = None
-        if len(self._seen) > self.config.dedup_memory:
-            self._seen.popitem(last=False)
-        return True
+        return self._floods.remember(self.route_table.row, key)
+
+    def remembered(self) -> list[tuple[int, int]]:
+        """The flood keys (origin, flood id) whose copies it drops, oldest first."""
+        return self._floods.held(self.route_table.row)
 
     def _on_data(self, t: float, packet: Packet, out: RouterOutput) -> None:
         origin, final, chunk = wire.decode_routed(packet.payload)

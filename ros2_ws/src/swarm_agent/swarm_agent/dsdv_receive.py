@@ -100,14 +100,10 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter],
     try:
         if kind is _FLOOD:
             key = wire.routed_key(packet.payload)
-            first = []
-            for i, r in taking:
-                if key in r._seen:
-                    # A copy already handled (28 % of an agent's frames in a 50-agent
-                    # thesis trial): dropped before any other work.
-                    r._count('duplicates')
-                else:
-                    first.append((i, r))
+            # Copies already handled (28 % of an agent's frames in a 50-agent thesis
+            # trial) are dropped before any other work, by one kernel call per group.
+            first = taking if key is None else _first_copies(
+                groups or _groups(takers), key, None if every else taking)
             if first:
                 _flood_heard(t, packet, first, outs)
         elif kind is _HEARTBEAT:
@@ -144,17 +140,15 @@ def hear(t: float, packet: Packet, routers: Sequence[DsdvRouter],
 def _flood_heard(t: float, packet: Packet, first: list[tuple[int, DsdvRouter]],
                  outs: list[RouterOutput]) -> None:
     """A flood heard for the first time by each router of ``first`` (position in
-    ``outs``, router): each remembers it, takes its message and relays it or not; the
-    frame is decoded once, and a whole message is one ``Delivered`` for all of them."""
+    ``outs``, router; they remembered it: ``_first_copies``): each takes its message and
+    relays it or not; the frame is decoded once, and a whole message is one
+    ``Delivered`` for all of them."""
     try:
         origin, flood_id, chunk = wire.decode_routed(packet.payload)
     except WireError as exc:
         for _, r in first:
             r._malformed(_FLOOD, packet.source, exc)
         return
-    key = (origin, flood_id)
-    for _, r in first:
-        r._remember(key)
     try:
         message, frag = wire.parse_chunk(chunk)
     except WireError as exc:
@@ -199,24 +193,42 @@ class _Group(NamedTuple):
     routers: list[DsdvRouter]
     store: RouteStore
     rows: np.ndarray
+    positions: list[int]     # of the routers in the list the groups were made of
 
 
 def _groups(routers: list[DsdvRouter]) -> list[_Group]:
     """``routers`` grouped for the kernels: one group in a process whose routers share a
     store and settings (the evaluator's, a composed container's), once per frame."""
     if len(routers) == 1:   # a node's router, the mission's: one frame at a time
-        return [_Group(routers, routers[0].route_table.store, routers[0]._row)]
+        return [_Group(routers, routers[0].route_table.store, routers[0]._row, [0])]
     token = routers[0]._group       # one store and the same scalar settings
     if all(r._group is token for r in routers):
-        split = [routers]
+        split = [list(range(len(routers)))]
     else:
-        keyed: dict[object, list[DsdvRouter]] = {}
-        for r in routers:
-            keyed.setdefault(r._group, []).append(r)
+        keyed: dict[object, list[int]] = {}
+        for i, r in enumerate(routers):
+            keyed.setdefault(r._group, []).append(i)
         split = list(keyed.values())
-    return [_Group(group, group[0].route_table.store,
-                   np.array([r.route_table.row for r in group], dtype=np.int64))
-            for group in split]
+    groups = []
+    for positions in split:
+        group = [routers[i] for i in positions]
+        groups.append(_Group(group, group[0].route_table.store, np.array(
+            [r.route_table.row for r in group], dtype=np.int64), positions))
+    return groups
+
+
+def _first_copies(groups: list[_Group], key: tuple[int, int],
+                  taking: list[tuple[int, DsdvRouter]] | None) -> list[tuple[int, DsdvRouter]]:
+    """The receivers that handle the flood ``key`` first (``flood_memory``), as
+    (position in the outputs, router): the groups' positions are those of ``taking``
+    (None: the outputs' own)."""
+    first = []
+    for routers, store, rows, positions in groups:
+        fresh = store.floods.first_copies(rows, key)
+        for j in np.flatnonzero(fresh).tolist():
+            p = positions[j]
+            first.append((p if taking is None else taking[p][0], routers[j]))
+    return first
 
 
 def scalar_settings(config: DsdvConfig) -> tuple[float, float, int]:
@@ -228,7 +240,7 @@ def scalar_settings(config: DsdvConfig) -> tuple[float, float, int]:
 def _neighbour_heard(groups: list[_Group], t: float, neighbour: int, beat: bool) -> None:
     """``neighbour`` heard directly by every receiver, in a heartbeat (``beat``) or a
     dump: ``neighbour_table.heard``."""
-    for routers, store, rows in groups:
+    for routers, store, rows, _ in groups:
         config = routers[0].config
         for i in neighbour_table.heard(store.neighbours, rows, neighbour, t, beat,
                                        config.heartbeat_period_s,
@@ -239,14 +251,14 @@ def _neighbour_heard(groups: list[_Group], t: float, neighbour: int, beat: bool)
 def _link_added(groups: list[_Group], neighbour: int, seq: int | None,
                 dump_seq: int = 0) -> None:
     """Link addition (Fig. 3.8) at every receiver: ``route_table.heard``."""
-    for routers, store, rows in groups:
+    for routers, store, rows, _ in groups:
         for i in route_table.heard(store, rows, neighbour, seq, dump_seq).tolist():
             routers[i]._dirty = True
 
 
 def _merged(groups: list[_Group], neighbour: int, adverts: np.ndarray) -> None:
     """The selection rules (3.1.2.1) at every receiver: ``route_table.merge``."""
-    for routers, store, rows in groups:
+    for routers, store, rows, _ in groups:
         changed, damping, damped = route_table.merge(
             store, rows, routers[0].config.stale_generations * SEQUENCE_STEP, neighbour,
             adverts)

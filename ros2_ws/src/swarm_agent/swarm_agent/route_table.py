@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarm_agent.address_grid import ADDRESSES, AddressGrid
+from swarm_agent.flood_memory import FloodMemory
 from swarm_agent.neighbour_table import NeighbourGrid
 from swarm_agent.wire import INFINITE_HOPS
 from swarm_common.jit import kernel
@@ -66,6 +67,7 @@ class RouteStore(AddressGrid):
     def __init__(self) -> None:
         super().__init__((0, NONE, 0, 0), np.int64)
         self.neighbours = NeighbourGrid()
+        self.floods = FloodMemory()     # the flood keys each router remembers
         self.own = np.zeros(1, dtype=np.int64)
         self.own_seq = np.zeros(1, dtype=np.int64)
 
@@ -73,6 +75,7 @@ class RouteStore(AddressGrid):
         """A new router of radio address ``address``, every route empty; returns its row."""
         row = super().add_row()
         self.neighbours.add_row()
+        self.floods.add_row(0)          # its router sets how many it remembers
         if row == len(self.own):
             self.own = np.concatenate([self.own, np.zeros_like(self.own)])
             self.own_seq = np.concatenate([self.own_seq, np.zeros_like(self.own_seq)])
