@@ -336,6 +336,26 @@ def test_fragmented_unicast_and_flood_reassembled(size):
         assert [d.payload for d in net.delivered[i] if d.kind == Kind.FLOOD] == [payload]
 
 
+def test_routers_completing_one_message_share_it_and_only_it():
+    """Routers of a process that reassemble the same message get one Delivered (its
+    decoding is then done once); a later message under the same fragment key, with
+    other bytes, is delivered as itself."""
+    net = _chain(4)
+    first = bytes(range(200))
+    net.transmit(10.0, 0, net.routers[0].broadcast(10.0, first))
+    got = [[d for d in net.delivered[i] if d.kind == Kind.FLOOD] for i in (1, 2, 3)]
+    assert all(len(g) == 1 and g[0].payload == first for g in got)
+    assert got[0][0] is got[1][0] is got[2][0]
+    # A restarted origin numbers its messages from the start again: the same keys.
+    net.routers[0]._frag_id = net.routers[0]._flood_id = 0
+    second = bytes(reversed(range(200)))
+    for router in (net.routers[i] for i in (1, 2, 3)):
+        router._floods.memory[router.route_table.row] = 0    # forget the old copies
+    net.transmit(20.0, 0, net.routers[0].broadcast(20.0, second))
+    assert [[d.payload for d in net.delivered[i] if d.kind == Kind.FLOOD][-1]
+            for i in (1, 2, 3)] == [second] * 3
+
+
 def test_fragments_out_of_order_and_incomplete():
     """Fragments reassemble in any order; an incomplete message expires, never delivered."""
     net = _chain(2)

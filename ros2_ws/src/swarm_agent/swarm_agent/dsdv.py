@@ -65,6 +65,9 @@ from swarm_agent.wire import WireError
 from swarm_common.parameters import tunable
 
 LOG = logging.getLogger(__name__)
+# The last message reassembled per (origin, kind, fragment key), shared (_reassemble).
+_ASSEMBLED: dict[tuple[int, int, tuple[int, int, int]], Delivered] = {}
+_ASSEMBLED_LIMIT = 1024
 BOOT_RATE = 128  # boot_sequence grows by 2 * BOOT_RATE a second of boot time
 
 
@@ -406,4 +409,13 @@ class DsdvRouter:
             return None
         del self._partial[key]
         self._count('delivered')
-        return Delivered(origin, kind, b''.join(pieces[i] for i in range(count)))
+        message = b''.join(pieces[i] for i in range(count))
+        # The routers of a process that complete one message share one Delivered, whose
+        # payload's decoding is then kept (wire.last_result): the same bytes, compared.
+        kept = _ASSEMBLED.get((origin, kind, key))
+        if kept is not None and kept.payload == message:
+            return kept
+        if len(_ASSEMBLED) >= _ASSEMBLED_LIMIT:
+            _ASSEMBLED.clear()
+        delivered = _ASSEMBLED[origin, kind, key] = Delivered(origin, kind, message)
+        return delivered
