@@ -340,7 +340,22 @@ def _dump_terms(neighbour: int, adverts: tuple[Advert, ...]) -> tuple[
     """What every receiver of a neighbour's dump reads, once per frame: the adverts as
     the (k, 3) array the route table's kernel reads, the destinations the neighbour
     advertises at one hop (its neighbours) and those at more (not its neighbours; itself
-    excepted). A destination advertised both ways in one frame counts as a neighbour."""
+    excepted). A destination advertised both ways in one frame counts as a neighbour.
+    The results of the last frames are kept by the identity of ``adverts`` (an
+    immutable tuple, one per frame content: ``wire.decode_adverts``), for the mission's
+    radio, which hears a step's frames before the robots do; the array is read only."""
+    kept = _TERMS.get(id(adverts))
+    if kept is not None and kept[0] is adverts and kept[1] == neighbour:
+        return kept[2]
     ones = frozenset([dest for dest, hops, _ in adverts if hops == 1])
     others = frozenset([dest for dest, hops, _ in adverts if hops != 1 and dest != neighbour])
-    return np.array(adverts, dtype=np.int64).reshape(-1, 3), ones, others - ones
+    terms = np.array(adverts, dtype=np.int64).reshape(-1, 3), ones, others - ones
+    if len(_TERMS) >= 256:
+        _TERMS.clear()
+    _TERMS[id(adverts)] = (adverts, neighbour, terms)   # referenced: its id is not reused
+    return terms
+
+
+# id(adverts) -> (adverts, neighbour, _dump_terms of them)
+_TERMS: dict[int, tuple[tuple[Advert, ...], int, tuple[np.ndarray, frozenset[int],
+                                                        frozenset[int]]]] = {}

@@ -16,6 +16,7 @@ a -3 dB bandwidth of 2.4 / 2.3 / 2.0 rad/s and under 2 % overshoot, slower than 
 from __future__ import annotations
 
 from dataclasses import dataclass
+import functools
 import math
 
 import numpy as np
@@ -38,8 +39,10 @@ def design_model(robot: RobotType) -> tuple[np.ndarray, np.ndarray]:
     return np.array([[-b / m, 0.0], [1.0, 0.0]]), np.array([[1.0 / m], [0.0]])
 
 
+@functools.lru_cache(maxsize=64)
 def design_lqr(robot: RobotType, design: LqrDesign | None = None) -> LqrGains:
-    """Gains minimising eq. 3.109 with the weights of eqs. 3.110-3.111."""
+    """Gains minimising eq. 3.109 with the weights of eqs. 3.110-3.111 (a pure function
+    of its frozen arguments, solved once per type and design: every brain asks)."""
     design = design or LqrDesign()
     a, b = design_model(robot)
     q = np.diag([1.0 / (design.t1 * design.x1_max ** 2), 1.0 / (design.t2 * design.x2_max ** 2)])
