@@ -158,6 +158,21 @@ def test_constant_force_reaches_the_analytic_terminal_velocity():
 
 
 @pytest.mark.usefixtures('kernels')
+def test_a_force_that_is_not_finite_acts_as_numpy_makes_it_finite():
+    """NaN is no force, an infinity the largest float (np.nan_to_num): a controller's
+    bad output moves no robot to NaN."""
+    robots = [TYPES[1]] * 4
+    bad = np.array([[np.nan, 1.0], [np.inf, -2.0], [-np.inf, np.nan], [3.0, -4.0]])
+    raw, clean = (PointMassSwarm(robots, np.zeros((4, 2))) for _ in range(2))
+    with np.errstate(over='ignore'):     # the largest float over a mass overflows
+        raw.step(0.02, bad)
+        clean.step(0.02, np.nan_to_num(bad))
+    assert np.array_equal(raw.positions, clean.positions)
+    assert np.array_equal(raw.velocities, clean.velocities)
+    assert np.isfinite(raw.positions[[0, 3]]).all()
+
+
+@pytest.mark.usefixtures('kernels')
 def test_force_below_coulomb_friction_does_not_move_a_robot_at_rest():
     robots = [TYPES[t] for t in TYPE_IDS]
     break_away = np.array([r.dry_friction * r.mass * GRAVITY for r in robots])

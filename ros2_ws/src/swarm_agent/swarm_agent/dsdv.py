@@ -403,7 +403,10 @@ class DsdvRouter:
         """One fragment of a message; the message once all its fragments are in."""
         frag_id, index, count = frag
         key = (origin, frag_id, count)
-        started, pieces = self._partial.setdefault(key, (t, {}))
+        partial = self._partial.get(key)
+        if partial is None:
+            partial = self._partial[key] = (t, {})
+        pieces = partial[1]
         pieces[index] = piece
         if len(pieces) < count:
             return None

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from swarm_common.jit import kernel
+from swarm_common.jit import helper, kernel
 from swarm_common.robot_types import GRAVITY, RobotType
 
 
@@ -34,7 +34,7 @@ class PointMassSwarm:
 
     def step(self, dt: float, forces) -> None:
         """Advance by ``dt`` under the applied forces (N, map frame), shape (N, 2)."""
-        forces = np.nan_to_num(np.asarray(forces, dtype=float).reshape(-1, 2))
+        forces = np.asarray(forces, dtype=float).reshape(-1, 2)
         self.positions, self.velocities, self._accel = _step(
             self.positions, self.velocities, forces, self.mass, self.fluid, self.dry,
             float(self.gravity), float(dt))
@@ -42,6 +42,21 @@ class PointMassSwarm:
     def accelerations(self) -> np.ndarray:
         """True accelerations of the last step (what an ideal accelerometer measures)."""
         return self._accel.copy()
+
+
+@helper
+def _finite(x: float) -> float:
+    """``x``, with NaN as 0 and an infinity as the largest float of its sign."""
+    if x != x:
+        return 0.0
+    if x > _LARGEST:
+        return _LARGEST
+    if x < -_LARGEST:
+        return -_LARGEST
+    return x
+
+
+_LARGEST = 1.7976931348623157e308     # np.finfo(float).max
 
 
 @kernel(np.zeros((2, 2)), np.zeros((2, 2)), np.ones((2, 2)), np.ones(2), np.ones(2),
@@ -54,13 +69,14 @@ def _step(positions: np.ndarray, velocities: np.ndarray, forces: np.ndarray,
     Applied force, then Coulomb dry friction as an impulse bounded by mu_1 g dt, then
     fluid friction implicitly (unconditionally stable). Dry friction acts before the
     implicit division so that a constant force F gives exactly the continuous terminal
-    speed (F - mu_1 m g) / mu_2.
+    speed (F - mu_1 m g) / mu_2. A force that is not a number is none, an infinite one
+    the largest float (``np.nan_to_num``).
     """
     n = positions.shape[0]
     new_p, new_v, accel = np.empty((n, 2)), np.empty((n, 2)), np.empty((n, 2))
     for i in range(n):
-        vx = velocities[i, 0] + dt * forces[i, 0] / mass[i]
-        vy = velocities[i, 1] + dt * forces[i, 1] / mass[i]
+        vx = velocities[i, 0] + dt * _finite(forces[i, 0]) / mass[i]
+        vy = velocities[i, 1] + dt * _finite(forces[i, 1]) / mass[i]
         speed = math.sqrt(vx * vx + vy * vy)
         dv_max = dry[i] * gravity * dt
         scale = 0.0 if speed <= dv_max else 1.0 - dv_max / max(speed, 1e-12)

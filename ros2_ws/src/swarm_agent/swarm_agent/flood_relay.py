@@ -27,6 +27,7 @@ from collections.abc import Mapping, Set
 import functools
 import math
 import operator
+import struct
 import zlib
 
 
@@ -124,6 +125,8 @@ def relays_anyway(copies: float, neighbours: int, flood_id: int, origin: int,
     if copies <= 0.0:
         return False
     fraction = copies / max(neighbours, 1)
-    draw = zlib.crc32(flood_id.to_bytes(2, 'little') + origin.to_bytes(2, 'little')
-                      + node_id.to_bytes(2, 'little'))
+    draw = zlib.crc32(_DRAW.pack(flood_id, origin, node_id))
     return draw < fraction * 0xFFFFFFFF
+
+
+_DRAW = struct.Struct('<HHH')    # the draw's bytes: flood id, origin, node (16 bits each)
