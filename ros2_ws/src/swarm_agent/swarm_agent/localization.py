@@ -216,6 +216,7 @@ class Localizer:
         self._gated: list[tuple[np.ndarray, np.ndarray, float]] = []
         # A zero-velocity update since the last tick: the robot stands parked.
         self._standing = False
+        self._still: tuple = (None, None, None)   # stand_still's (std, z, R)
         # When each anchor held as a consider parameter was last ranged to.
         self._anchor_used: dict[Any, float] = {}
 
@@ -337,7 +338,9 @@ class Localizer:
         commands no force and has had time to stop knows it stands still.
         """
         std = self.config.zero_velocity_std
-        self.kf.update_velocity(np.zeros(2), np.eye(2) * std ** 2)
+        if self._still[0] != std:      # z and R made once per setting (2 Hz per robot)
+            self._still = (std, np.zeros(2), np.eye(2) * std ** 2)
+        self.kf.update_velocity(self._still[1], self._still[2])
         self._standing = True
 
     def stood_still(self) -> bool:
