@@ -59,6 +59,13 @@ def test_tiny_suite_writes_every_section(tmp_path):
     for key in ('wall_per_trial_s', 'cpu_per_trial_s', 'sim_s_per_trial', 'sim_s_per_wall_s',
                 'trials_per_min_one_process', 'trials_per_min_all_cores'):
         assert _positive(ev[key]), key
+    command = sections['throughput']['issue_command']   # issue 23's, tiny under --quick
+    assert command['trials'] == 2 and command['agents'] == 10
+    assert _positive(command['trials_per_min']) and _positive(command['trial_wall_sum_s'])
+    assert command['wall_s'] > command['trial_wall_sum_s'] / command['workers']
+    large = sections['throughput']['large_swarm']
+    assert large['agents'] == 10 and _positive(large['real_time_factor'])
+    assert large['sim_s'] == pytest.approx(3.0, abs=0.05)
     executors = sections['executor']['executors']
     assert set(executors) == {'single', 'events'}
     for row in executors.values():
@@ -69,6 +76,7 @@ def test_tiny_suite_writes_every_section(tmp_path):
     md = (tmp_path / 'benchmarks.md').read_text()
     assert md.startswith('# Benchmarks') and '| 10 agents |' in md
     assert 'What we chose and why' in md and '## Targets' in md
+    assert '## Throughput (issue 23)' in md and "issue 23's command" in md
     # --update re-measures one section and keeps the others; --render rewrites the report
     proc = _run('--sizes', '10', '--repeats', '1', '--quick', '--only', 'medium', '--update',
                 '--out', str(tmp_path))

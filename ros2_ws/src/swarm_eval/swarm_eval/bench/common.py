@@ -15,7 +15,7 @@ from swarm_eval.paths import repo_root
 
 ROOT = repo_root()
 SECTIONS = ('dsdv', 'trilateration', 'partition', 'cost_rows', 'assignment', 'medium',
-            'world', 'evaluator', 'executor')
+            'world', 'evaluator', 'throughput', 'executor')
 TARGET_SIZE = 1000        # the issue's per-round targets are for 1000 agents
 ROUND_TARGET_S = 1.0      # assignment and cost rows under 1 s per round
 EVAL_TARGET_PER_MIN = 100.0
@@ -25,6 +25,10 @@ WORLD_TARGET = (50, 20.0)  # issue 6: the bare pybullet world, 50 robots, 20x re
 PROCESS_MB = 60
 # mode, agents, real-time factor (issue 9; 50 composed at 5: issue 7)
 ROS_TARGETS = (('per-process', 50, 1.0), ('composed', 50, 5.0), ('composed', 100, 2.0))
+# Issue 23: 100 trials a minute of its command, 200 agents headless at 5x real time, 100
+# composed at 5x, and 50 per-process agents not slower than the 1.37 of its day.
+ISSUE23 = {'trials_per_min': 100.0, 'large_rtf': 5.0, 'large_agents': 200,
+           'ros': (('composed', 100, 5.0), ('per-process', 50, 1.37))}
 
 
 class BenchError(ValueError):

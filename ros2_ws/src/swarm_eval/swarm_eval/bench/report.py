@@ -8,6 +8,7 @@ import shlex
 
 from swarm_eval.bench.common import (
     EVAL_TARGET_PER_MIN,
+    ISSUE23,
     ROS_TARGETS,
     ROUND_TARGET_S,
     TARGET_SIZE,
@@ -50,10 +51,22 @@ def targets(results: dict) -> list[dict]:
         EVAL_TARGET_PER_MIN, 'trials/min',
         f'trials bounded to {ev["duration_bound_s"]:g} sim-s; a full trial runs until '
         'settled, so it is slower' if ev else '')
+    tp = s.get('throughput')
+    command = tp and tp['issue_command']
+    add("issue 23's command (50 agents, 20 trials to their end, 2 workers), trials per "
+        'minute, start-up included', command and command['trials_per_min'], '>=',
+        ISSUE23['trials_per_min'], 'trials/min',
+        f'{command["settled"]} of {command["trials"]} settled' if command else '')
+    large = tp and tp['large_swarm']
+    add(f'{ISSUE23["large_agents"]} agents headless (issue 23), real-time factor',
+        large and large['agents'] == ISSUE23['large_agents'] and large['real_time_factor']
+        or None, '>=', ISSUE23['large_rtf'], 'x',
+        f'the first {large["duration_bound_s"]:g} simulated seconds' if large else '')
     ros = s.get('ros') or []
-    for mode, n, rtf in ROS_TARGETS:
+    for issue, (mode, n, rtf) in [*(('9', t) for t in ROS_TARGETS),
+                                  *(('23', t) for t in ISSUE23['ros'])]:
         row = next((r for r in ros if r['mode'] == mode and r['agents'] == n), None)
-        add(f'ROS, {n} agents {mode}, real-time factor once started',
+        add(f'ROS, {n} agents {mode} (issue {issue}), real-time factor once started',
             row and row.get('steady_real_time_factor'), '>=', rtf, 'x',
             (f'whole run with start-up: {fmt_num(row.get("real_time_factor"))}'
              if row else 'run with --ros'))
@@ -257,6 +270,8 @@ def write_markdown(path: pathlib.Path, results: dict) -> None:
                   f'{ev["sim_s_per_trial"]:.0f} | {ev["sim_s_per_wall_s"]:.2f} | '
                   f'{ev["trials_per_min_one_process"]:.2f} | '
                   f'{ev["trials_per_min_all_cores"]:.2f} ({ev["cores"]} cores) |']
+    if 'throughput' in s:
+        lines += throughput_lines(s['throughput'])
     if 'executor' in s:
         ex = s['executor']
         lines += ['', '## Executor', '',
@@ -291,7 +306,7 @@ def write_markdown(path: pathlib.Path, results: dict) -> None:
                   '`scripts/env.sh python benchmarks/run_all.py --ros --ros-sizes 20,50,100 '
                   '--ros-duration 30` (per-process and composed at each size, a few minutes '
                   'each on 2 cores).']
-    lines += ['', '## Targets (issues 6 and 9)', '',
+    lines += ['', '## Targets (issues 6, 9 and 23)', '',
               '| Target | Measured | Wanted | Result | Note |', '|---|---|---|---|---|']
     for t in results['targets']:
         if t['unit'] == 's':
@@ -303,3 +318,19 @@ def write_markdown(path: pathlib.Path, results: dict) -> None:
         lines.append(f'| {t["target"]} | {value} | {wanted} | {verdict} | {t["note"]} |')
     path.write_text('\n'.join(lines) + '\n', encoding='utf-8')
 
+
+
+def throughput_lines(tp: dict) -> list[str]:
+    """The throughput section (issue 23): its command and the large swarm."""
+    c, big = tp['issue_command'], tp['large_swarm']
+    bound = ('' if c['duration_bound_s'] is None
+             else f', each bounded to {c["duration_bound_s"]:g} simulated seconds')
+    return ['', '## Throughput (issue 23)', '',
+            f'`{c["command"]}`{bound}, run as a child process and timed from start to '
+            f'exit: {c["trials"]} trials in {c["wall_s"]:.1f} s, **{c["trials_per_min"]:.1f} '
+            f'trials a minute** ({c["settled"]} settled; the trials\' own walls add up to '
+            f'{c["trial_wall_sum_s"]:.1f} s on {c["workers"]} workers). '
+            f'{big["agents"]} agents headless (`run_trial`, the thesis circle scaled by '
+            f'{big["shape_scale"]:g}, the first {big["duration_bound_s"]:g} simulated '
+            f'seconds): {big["wall_s"]:.1f} s wall, {big["cpu_s"]:.1f} s CPU, '
+            f'**{big["real_time_factor"]:.2f}x real time**.']

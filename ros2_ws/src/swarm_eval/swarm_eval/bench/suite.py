@@ -29,6 +29,10 @@ are medians of --repeats runs, per swarm size of --sizes:
                  ``run_trial``: 50 agents, 8 beacons, circle_314, bubble) bounded to
                  --eval-duration simulated seconds: wall and CPU seconds per trial, sim
                  seconds per wall second, trials per minute;
+- throughput:    issue 23's command (``scripts/evaluate.py ... --agents 50 --trials 20
+                 --workers 2``, every trial to its end, start-up included: trials per
+                 minute) and --large-agents headless for --large-duration simulated
+                 seconds (real-time factor; ``swarm_eval.bench.throughput``);
 - executor:      benchmarks/bench_executor.py (SingleThreaded vs EventsExecutor, 50
                  nodes at 50 Hz) in a child process, and which executor composed_node gets;
 - ros (--ros):   scripts/launch_swarm.py per-process and --composed at --ros-sizes agents
@@ -74,6 +78,7 @@ from swarm_eval.bench.sections import (
     bench_partition_section,
     bench_trilateration,
 )
+from swarm_eval.bench.throughput import bench_throughput
 from swarm_sim.report import jsonable
 
 
@@ -93,6 +98,14 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help='simulated seconds per evaluator trial (default 60, --quick 3)')
     p.add_argument('--eval-agents', type=int, default=50)
     p.add_argument('--eval-beacons', type=int, default=8)
+    p.add_argument('--issue-trials', type=int, default=None,
+                   help="trials of issue 23's command (default 20, --quick 2)")
+    p.add_argument('--issue-workers', type=int, default=None,
+                   help="workers of issue 23's command (default 2, --quick 1)")
+    p.add_argument('--large-agents', type=int, default=None,
+                   help='agents of the large headless swarm (default 200, --quick 10)')
+    p.add_argument('--large-duration', type=float, default=None,
+                   help='simulated seconds of the large swarm (default 30, --quick 3)')
     p.add_argument('--executor-nodes', type=int, default=None,
                    help='nodes of bench_executor.py (default 50, --quick 5)')
     p.add_argument('--executor-seconds', type=float, default=None,
@@ -127,6 +140,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         args.world_sizes = '10' if args.quick else '50,200'
     if args.world_seconds is None:
         args.world_seconds = 1.0 if args.quick else 20.0
+    for name, full, tiny in (('issue_trials', 20, 2), ('issue_workers', 2, 1),
+                             ('large_agents', 200, 10), ('large_duration', 30.0, 3.0)):
+        if getattr(args, name) is None:
+            setattr(args, name, tiny if args.quick else full)
     if args.executor_nodes is None:
         args.executor_nodes = 5 if args.quick else 50
     if args.executor_seconds is None:
@@ -148,14 +165,17 @@ def sizes_arg(text: str, name: str, least: int) -> list[int]:
 def validate(args: argparse.Namespace) -> tuple[list[int], list[int], list[str]]:
     sizes = sizes_arg(args.sizes, '--sizes', 10)
     ros_sizes = sizes_arg(args.ros_sizes, '--ros-sizes', 3)
-    for name in ('repeats', 'dsdv_repeats', 'executor_nodes', 'eval_agents'):
+    for name in ('repeats', 'dsdv_repeats', 'executor_nodes', 'eval_agents', 'issue_trials',
+                 'issue_workers'):
         if getattr(args, name) < 1:
             raise BenchError(f'--{name.replace("_", "-")} must be at least 1')
     args.world_size_list = sizes_arg(args.world_sizes, '--world-sizes', 1)
     for name in ('eval_duration', 'world_seconds', 'executor_seconds', 'ros_duration',
-                 'dsdv_limit', 'ros_timeout'):
+                 'dsdv_limit', 'ros_timeout', 'large_duration'):
         if not getattr(args, name) > 0:
             raise BenchError(f'--{name.replace("_", "-")} must be positive')
+    if args.large_agents < 10:
+        raise BenchError('--large-agents must be at least 10')
     if not 3 <= args.eval_beacons <= args.eval_agents:
         raise BenchError(f'--eval-beacons must be between 3 and --eval-agents '
                          f'({args.eval_agents})')
@@ -251,6 +271,9 @@ def main(argv: list[str] | None = None) -> int:
         ('evaluator', lambda: s.__setitem__('evaluator', bench_evaluator(
             args.eval_duration, args.repeats, args.eval_agents, args.eval_beacons,
             'circle_314', args.seed))),
+        ('throughput', lambda: s.__setitem__('throughput', bench_throughput(
+            args.issue_trials, args.issue_workers, args.large_agents, args.large_duration,
+            args.seed, args.quick))),
         ('executor', lambda: s.__setitem__('executor', bench_executor_section(
             args.executor_nodes, 50.0, args.executor_seconds, args.repeats,
             0 if args.quick else args.executor_check_agents))),
