@@ -43,7 +43,8 @@ def bench_issue_command(agents: int, trials: int, workers: int, seed: int,
         raise RuntimeError('evaluate.py failed: '
                            + (proc.stderr.strip().splitlines() or ['no trials written'])[-1])
     settled = sum(r.get('settling_time') is not None for r in rows)
-    row = {'command': ' '.join(cmd[1:cmd.index('--out')]), 'agents': agents,
+    shown = ['scripts/evaluate.py', *cmd[2:cmd.index('--out')]]   # as the docs give it
+    row = {'command': ' '.join(shown), 'agents': agents,
            'trials': trials, 'workers': workers, 'wall_s': wall,
            'trials_per_min': 60.0 * trials / wall, 'settled': settled,
            'trial_wall_sum_s': sum(r['wall_seconds'] for r in rows),
