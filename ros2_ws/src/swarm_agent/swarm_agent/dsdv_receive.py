@@ -196,11 +196,14 @@ class _Group(NamedTuple):
     positions: list[int]     # of the routers in the list the groups were made of
 
 
+_ALONE = [0]     # the positions of a router alone (read only)
+
+
 def _groups(routers: list[DsdvRouter]) -> list[_Group]:
     """``routers`` grouped for the kernels: one group in a process whose routers share a
     store and settings (the evaluator's, a composed container's), once per frame."""
     if len(routers) == 1:   # a node's router, the mission's: one frame at a time
-        return [_Group(routers, routers[0].route_table.store, routers[0]._row, [0])]
+        return [_Group(routers, routers[0].route_table.store, routers[0]._row, _ALONE)]
     token = routers[0]._group       # one store and the same scalar settings
     if all(r._group is token for r in routers):
         split = [list(range(len(routers)))]
@@ -225,6 +228,11 @@ def _first_copies(groups: list[_Group], key: tuple[int, int],
     first = []
     for routers, store, rows, positions in groups:
         fresh = store.floods.first_copies(rows, key)
+        if len(routers) == 1:      # a router alone (a node's, the mission's)
+            if fresh[0]:
+                first.append((positions[0] if taking is None else taking[positions[0]][0],
+                              routers[0]))
+            continue
         for j in np.flatnonzero(fresh).tolist():
             p = positions[j]
             first.append((p if taking is None else taking[p][0], routers[j]))
