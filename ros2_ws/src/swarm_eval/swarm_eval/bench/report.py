@@ -53,8 +53,11 @@ def targets(results: dict) -> list[dict]:
         'settled, so it is slower' if ev else '')
     tp = s.get('throughput')
     command = tp and tp['issue_command']
+    # Only the command as the issue gives it counts (not --issue-trials 5, not --quick's).
+    exact = command and (command['agents'], command['trials'], command['workers'],
+                         command['duration_bound_s']) == (50, 20, 2, None)
     add("issue 23's command (50 agents, 20 trials to their end, 2 workers), trials per "
-        'minute, start-up included', command and command['trials_per_min'], '>=',
+        'minute, start-up included', command['trials_per_min'] if exact else None, '>=',
         ISSUE23['trials_per_min'], 'trials/min',
         f'{command["settled"]} of {command["trials"]} settled' if command else '')
     large = tp and tp['large_swarm']
@@ -317,7 +320,6 @@ def write_markdown(path: pathlib.Path, results: dict) -> None:
         verdict = {True: 'met', False: 'missed', None: 'not measured'}[t['met']]
         lines.append(f'| {t["target"]} | {value} | {wanted} | {verdict} | {t["note"]} |')
     path.write_text('\n'.join(lines) + '\n', encoding='utf-8')
-
 
 
 def throughput_lines(tp: dict) -> list[str]:
