@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+import itertools
 from typing import NamedTuple, TYPE_CHECKING
 
 import numpy as np
@@ -357,7 +358,10 @@ def _dump_terms(neighbour: int, adverts: tuple[Advert, ...]) -> tuple[
         return kept[2]
     ones = frozenset([dest for dest, hops, _ in adverts if hops == 1])
     others = frozenset([dest for dest, hops, _ in adverts if hops != 1 and dest != neighbour])
-    terms = np.array(adverts, dtype=np.int64).reshape(-1, 3), ones, others - ones
+    # fromiter over the flattened tuples: 1.5 us for 13 adverts, np.array of them 4.0.
+    rows = np.fromiter(itertools.chain.from_iterable(adverts), dtype=np.int64,
+                       count=3 * len(adverts)).reshape(-1, 3)
+    terms = rows, ones, others - ones
     if len(_TERMS) >= 256:
         _TERMS.clear()
     _TERMS[id(adverts)] = (adverts, neighbour, terms)   # referenced: its id is not reused
