@@ -12,9 +12,9 @@ composed scenario, 46 % of the agents' process and 57 % of the simulator's; one
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass
 import enum
 import struct
+from typing import NamedTuple
 
 BROADCAST = 0xFFFF
 MAX_PAYLOAD = 100  # bytes: one XBee frame
@@ -40,10 +40,7 @@ class Kind(enum.IntEnum):
     FRAGMENT = 5
 
 
-@dataclass(frozen=True)
-class Packet:
-    """One frame on the radio medium (link-level source and destination)."""
-
+class _PacketFields(NamedTuple):
     source: int
     destination: int
     kind: int
@@ -51,9 +48,22 @@ class Packet:
     ttl: int
     payload: bytes
 
-    def __post_init__(self) -> None:
-        if not isinstance(self.payload, bytes):
-            object.__setattr__(self, 'payload', bytes(self.payload))
+
+class Packet(_PacketFields):
+    """One frame on the radio medium (link-level source and destination); immutable, its
+    payload always ``bytes``. A tuple: three are made per transmission (sent, sealed,
+    opened), and a frozen dataclass took 0.79 us to make where this takes 0.28."""
+
+    __slots__ = ()
+
+    def __new__(cls, source: int, destination: int, kind: int, sequence: int, ttl: int,
+                payload: bytes) -> Packet:
+        if payload.__class__ is not bytes:
+            payload = bytes(payload)
+        return _NEW(cls, (source, destination, kind, sequence, ttl, payload))
+
+
+_NEW = tuple.__new__
 
 
 def pack_frames(frames: Iterable[tuple[float, Packet]]) -> bytes:
