@@ -81,7 +81,7 @@ def _load_yaml(path: pathlib.Path) -> dict:
         raise RobotTypeError(f'cannot read robot type table {path}: {exc.strerror}') from exc
     if not isinstance(data, dict) or 'robot_types' not in data:
         raise RobotTypeError(f'{path} has no "robot_types" mapping; see {DEFAULT_CONFIG}')
-    _PARSED[version] = data
+    _PARSED.setdefault(version, data)
     return data
 
 

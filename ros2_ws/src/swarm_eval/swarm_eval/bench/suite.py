@@ -63,7 +63,7 @@ import sys
 import tempfile
 import time
 
-from swarm_eval.bench.common import BenchError, git, log, ROOT, SECTIONS
+from swarm_eval.bench.common import BenchError, git, ISSUE23, log, ROOT, SECTIONS
 from swarm_eval.bench.processes import (
     bench_evaluator,
     bench_executor_section,
@@ -140,8 +140,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         args.world_sizes = '10' if args.quick else '50,200'
     if args.world_seconds is None:
         args.world_seconds = 1.0 if args.quick else 20.0
-    for name, full, tiny in (('issue_trials', 20, 2), ('issue_workers', 2, 1),
-                             ('large_agents', 200, 10), ('large_duration', 30.0, 3.0)):
+    for name, full, tiny in (('issue_trials', ISSUE23['trials'], 2),
+                             ('issue_workers', ISSUE23['workers'], 1),
+                             ('large_agents', ISSUE23['large_agents'], 10),
+                             ('large_duration', 30.0, 3.0)):
         if getattr(args, name) is None:
             setattr(args, name, tiny if args.quick else full)
     if args.executor_nodes is None:

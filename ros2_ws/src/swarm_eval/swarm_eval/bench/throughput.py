@@ -16,7 +16,7 @@ import sys
 import tempfile
 import time
 
-from swarm_eval.bench.common import log, ROOT, ros_env, run_child
+from swarm_eval.bench.common import ISSUE23, log, ROOT, ros_env, run_child
 from swarm_eval.scenario import run_trial, ScenarioSpec
 
 
@@ -76,6 +76,7 @@ def bench_throughput(issue_trials: int, issue_workers: int, large_agents: int,
     """The section: the issue's command (--quick: 10 agents, 3 sim-s a trial) and the
     large swarm."""
     command = (bench_issue_command(10, issue_trials, issue_workers, seed, 3.0) if quick
-               else bench_issue_command(50, issue_trials, issue_workers, seed))
+               else bench_issue_command(ISSUE23['agents'], issue_trials, issue_workers,
+                                        seed))
     return {'issue_command': command,
             'large_swarm': bench_large_swarm(large_agents, large_duration_s, seed)}
