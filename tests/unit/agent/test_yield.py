@@ -1,14 +1,17 @@
 """Collision avoidance inside the brain: the filter acts on proximity scans, a parked
-robot yields to a neighbour that comes too close and then returns to its goal."""
+robot yields to a neighbour that comes too close and then returns to its goal, and a
+robot held far from its goal goes round the robots that hold it."""
 
 from __future__ import annotations
 
 import numpy as np
 from shapely.geometry import box
+import yaml
 
 from swarm_agent.agent_factory import make_brain
 from swarm_agent.brain import AgentBrain
 from swarm_agent.setpoint import avoid_collisions, SetpointParams, stays_parked
+from swarm_bringup import hil
 from swarm_common.goals import Goal
 from swarm_common.shapes import Shape
 
@@ -172,3 +175,49 @@ def test_one_call_for_many_scans_is_the_same_as_one_call_each(kernels):
         assert a._proximity_at == b._proximity_at == 3.5
         assert a._avoid_due == b._avoid_due
     assert [b._avoid_due for b in many] == [False, True, False, True]
+
+
+def _held_in_the_pocket(detour_after_s: float, seconds: float):
+    """Robot 2 of the stalled hw_square run (tests/unit/agent/test_held_robots.py): a
+    type-2 robot (11 cm) with the arena's parameters, 0.45 m from its goal, between
+    robots 0 (16 cm) and 3 (8 cm) of its proximity scans, held where it stands. Its
+    commands every 0.5 s after the first assignment (2 s)."""
+    hw = yaml.safe_load(hil.bridge_config('hw_agent.yaml').read_text())['/**'][
+        'ros__parameters']
+    settings = {f'setpoint.{k}': v for k, v in hw['setpoint'].items()}
+    settings.update({'hold_radius': hw['hold_radius'], 'resume_radius': hw['resume_radius'],
+                     'setpoint.detour_after_s': detour_after_s})
+    robot, goal = np.array([-0.130, 0.199]), (-0.238, -0.239)
+    brain = make_brain(agent_id=2, agent_type=2, initial_position=robot, external_pose=True,
+                       robot_types_file=str(hil.bridge_config('hw_robot_types.yaml')),
+                       settings=settings)
+    brain.set_shape(Shape('square', box(-1.0, -1.0, 1.0, 1.0)), 1)
+    brain.set_goals([Goal(2, 2, *goal, 0.11)], 1)
+    offsets = np.array([[0.026, -0.021], [-0.316, 0.239]]) - robot
+    commands = []
+    for step in range(int(seconds / DT) + 1):
+        t = step * DT
+        brain.localizer.position[:] = robot
+        brain.localizer.velocity[:] = 0.0
+        brain.on_proximity(t, offsets, [0.16, 0.08])
+        out = brain.step(t)
+        if step % 25 == 0 and t >= 2.0:
+            commands.append(out.velocity_setpoint.copy())
+    return brain, np.array(commands), offsets / np.linalg.norm(offsets, axis=1)[:, None]
+
+
+def test_a_brain_held_far_from_its_goal_goes_round_after_detour_after_s():
+    """Held (its command under a quarter of its 3.5 cm/s setpoint) from the first
+    assignment at 2 s, it plans round at 4 s and drives out of the pocket from the next
+    outer tick at 3.5 cm/s, closing on neither neighbour; with detour_after_s 0 (the
+    simulation's default) it stays held."""
+    brain, commands, towards = _held_in_the_pocket(2.0, 8.0)
+    v_max = brain.config.setpoint.v_max
+    speeds = np.linalg.norm(commands, axis=1)
+    assert speeds[:5].max() < 0.25 * v_max                       # 2.0-4.0 s: held
+    assert speeds[6:].min() > 0.9 * v_max                       # from 5 s: going round
+    assert (commands[6:] @ towards.T).max() <= 1e-9
+    assert brain._detour.active and 'went round 1 times' in brain.status_line()
+    brain, commands, _ = _held_in_the_pocket(0.0, 8.0)
+    assert np.linalg.norm(commands, axis=1).max() < 0.25 * v_max
+    assert 'went round 0 times' in brain.status_line()

@@ -13,10 +13,9 @@ It combines the algorithms of thesis chapter 3 exactly as an agent runs them:
   space, 3.2.2.2; a beacon only to beacon goals and the others only to the rest,
   ``costs.class_costs``), floods it tagged with the consensus round (every
   ``consensus_period_s``), and at the next round solves the Hungarian assignment over
-  the rows of the previous round. Agents holding
-  the same rows compute the same assignment; the digest of the rows used is exposed so
-  that agreement can be checked. With ``forces`` there are no goals: the artificial
-  forces of 3.2.1.1 act on the agent directly.
+  the rows of the previous round. Agents holding the same rows compute the same
+  assignment; the digest of the rows used is exposed so that agreement can be checked.
+  With ``forces`` there are no goals: the artificial forces of 3.2.1.1 act directly.
 - Control (3.2.4): a velocity setpoint (proportional to the distance, saturated at
   0.5 m/s) tracked by the LQR inner loop (eqs. 3.108-3.111).
 - Collision avoidance (beyond the thesis): every command passes the safety filter of
@@ -24,7 +23,8 @@ It combines the algorithms of thesis chapter 3 exactly as an agent runs them:
   (10 Hz) or the outer loop runs. It acts on the neighbours' offsets measured by the
   proximity sensor while they are fresh, and on their broadcast estimates otherwise.
   A parked robot that a neighbour comes too close to yields, then returns to its goal;
-  a robot held still short of its goal gives way (``setpoint.GiveWay``).
+  a robot held still short of its goal gives way (``setpoint.GiveWay``), one held far
+  from it goes round the robots that hold it (``detour.Detour``).
 - A body that does not accelerate under a force at its limit (``stall.StallDetector``)
   takes the zero-velocity update of a parked robot if its filter agrees that it stands
   (``Localizer.stood_still``), and sidesteps.
@@ -51,8 +51,9 @@ import shapely
 from swarm_agent.assignment import assign
 from swarm_agent.assignment import SHARED as SHARED_ASSIGNMENTS
 from swarm_agent.brain_config import BrainConfig
-from swarm_agent.brain_records import BrainOutput, Neighbour, Snapshot
+from swarm_agent.brain_records import BrainOutput, broadcast_offsets, Neighbour, Snapshot
 from swarm_agent.costs import class_costs, VisibilityGraph
+from swarm_agent.detour import Detour
 from swarm_agent.dsdv import Delivered, DsdvRouter
 from swarm_agent.forces import formation_force
 from swarm_agent.frame_auth import FrameAuth
@@ -132,6 +133,7 @@ class AgentBrain:
         self._proximity_at = -math.inf
         self._yielding = False
         self._give_way = GiveWay(config.setpoint, robot.coverage_radius)
+        self._detour = Detour(config.setpoint, robot.coverage_radius)
         self._stall = StallDetector(u_max, config)
         self._goal_distance = math.inf       # m, at the last outer tick (inf: no goal)
         self._force = np.zeros(2)
@@ -327,7 +329,8 @@ class AgentBrain:
                 self.config.setpoint, parked=self._parked or self._give_way.active(t),
                 own_velocity=None if self._parked else self.localizer.velocity,
                 lag_s=tracking_lag_s(self.robot.fluid_friction, self.loop.gains))
-            self._give_way.observe(t, self._setpoint, self._command, self._goal_distance)
+            for held in (self._give_way, self._detour):
+                held.observe(t, self._setpoint, self._command, self._goal_distance)
             self._commanded = bool(self._command[0] or self._command[1])
         commanded = self._commanded
         if self._yielding and not commanded:
@@ -392,7 +395,8 @@ class AgentBrain:
                 f'fixes {loc.stats}; neighbours {len(self.neighbours)}, beacons heard '
                 f'{beacons}, ranges {len(self._ranges)}; goal {self.goal_id} '
                 f'(v{self.goal_version}, {self.rows_used} rows), gave way '
-                f'{self._give_way.count} times, stalled {self._stall.count} times; '
+                f'{self._give_way.count} times, went round {self._detour.count} times, '
+                f'stalled {self._stall.count} times; '
                 f'mesh {self.stats}; router {self.router.stats}; '
                 f'rejected frames {self.auth_stats}')
 
@@ -404,15 +408,13 @@ class AgentBrain:
     @property
     def settled(self) -> bool:
         """Inside the shape (own estimate) and slower than the settling speed (eq. 4.1)."""
-        if self.shape is None:
-            return False
         speed = float(np.hypot(*self.localizer.velocity))
-        return speed < self.config.settle_speed and _inside(self.shape, self.localizer.position)
+        return self.shape is not None and speed < self.config.settle_speed and _inside(
+            self.shape, self.localizer.position)
 
     # ------------------------------------------------------------------ internals
     def _info(self) -> NeighbourInfo:
-        pos = self.localizer.position
-        vel = self.localizer.velocity
+        pos, vel = self.localizer.position, self.localizer.velocity
         return NeighbourInfo(self.config.agent_type, self.config.is_beacon,
                              int(self.localizer.mode), (float(pos[0]), float(pos[1])),
                              (float(vel[0]), float(vel[1])), self.settled,
@@ -551,10 +553,9 @@ class AgentBrain:
         result = SHARED_ASSIGNMENTS.get((used, goal_ids), lambda: assign(
             {aid: (row.agent_type, row.costs) for aid, row in ordered},
             self._mine.types, np.array(goal_ids)))
-        digest = zlib.crc32(used)
         self.goal_id = int(result.get(self.config.agent_id, -1))
         self.assignment_round = rnd
-        self.assignment_digest = digest
+        self.assignment_digest = zlib.crc32(used)
         self.rows_used = len(rows)
         self.stats['assignments'] += 1
 
@@ -566,19 +567,18 @@ class AgentBrain:
                 t - self._proximity_at <= self.config.proximity_stale_s:
             return self._proximity
         self._drop_stale(t)
-        if not self.neighbours:
-            return np.zeros((0, 2)), np.zeros(0)
-        infos = [n.info for n in self.neighbours.values()]
-        pos = np.array([n.position for n in infos], dtype=float)
-        radii = np.array([self.config.type_radii.get(n.agent_type, self.robot.coverage_radius)
-                          for n in infos])
-        return pos - self.localizer.position, radii
+        return broadcast_offsets(self.neighbours.values(), self.localizer.position,
+                                 self.config.type_radii, self.robot.coverage_radius)
 
     def _setpoint_towards(self, target: np.ndarray) -> np.ndarray:
         position = self.localizer.position
         waypoints = None
         if self._graph is not None and np.hypot(*(target - position)) > 1e-6:
-            waypoints = self._graph.path(position, target)
+            if self._detour.active:     # round the robots that hold it (detour.Detour)
+                waypoints = self._detour.waypoints(position, target, *self._neighbour_offsets(
+                    self._last_t), self._graph.obstacles)
+            if waypoints is None:
+                waypoints = self._graph.path(position, target)
         return velocity_setpoint(position, target, self.config.setpoint, waypoints=waypoints)
 
     def _forces_setpoint(self, t: float) -> np.ndarray:

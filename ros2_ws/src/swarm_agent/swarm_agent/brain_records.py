@@ -1,9 +1,10 @@
 """What the brain (``swarm_agent.brain``) remembers of a neighbour and what it gives out:
 the output of a step and a snapshot of its belief. Frozen records, read by the nodes,
-the headless evaluator and the metrics."""
+the headless evaluator and the metrics, and where the neighbours are by their records."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,6 +19,19 @@ class Neighbour:
 
     info: NeighbourInfo
     heard_at: float
+
+
+def broadcast_offsets(neighbours: Iterable[Neighbour], position: np.ndarray,
+                      type_radii: Mapping[int, float],
+                      own_radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Neighbours' broadcast positions minus ``position`` (k, 2, m) and their cover radii
+    by type (k,; an unknown type: ``own_radius``)."""
+    infos = [n.info for n in neighbours]
+    if not infos:
+        return np.zeros((0, 2)), np.zeros(0)
+    pos = np.array([n.position for n in infos], dtype=float)
+    radii = np.array([type_radii.get(n.agent_type, own_radius) for n in infos])
+    return pos - position, radii
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 import math
 
+import numpy as np
 import shapely
 from shapely.geometry import MultiPolygon, Polygon
 
@@ -31,15 +32,36 @@ def grow_obstacles(obstacles: Sequence[Polygon], radius: float,
         raise FreeSpaceError(f'coverage radius must be finite and >= 0, got {radius}')
     if not obstacles:
         return []
-    circumscribed = radius / math.cos(math.pi / (4 * quad_segs)) if radius > 0 else 0.0
-    grown = [shapely.buffer(o, circumscribed, quad_segs=quad_segs) for o in obstacles
-             if o is not None and not o.is_empty]
-    merged = shapely.union_all(grown)
+    grown = [shapely.buffer(o, _circumscribed(radius, quad_segs), quad_segs=quad_segs)
+             for o in obstacles if o is not None and not o.is_empty]
+    return merge(grown)
+
+
+def grow_discs(centres, radii, quad_segs: int = QUAD_SEGS) -> list[Polygon]:
+    """Discs of ``radii`` (k,) round ``centres`` (k, 2) as polygons that contain them,
+    with the corners of ``grow_obstacles``: for another robot of cover r_j, grown by this
+    robot's r_i (eq. 3.103 for a disc obstacle), the radius is r_i + r_j."""
+    centres = np.asarray(centres, dtype=float).reshape(-1, 2)
+    if not len(centres):
+        return []
+    radii = np.asarray(radii, dtype=float).reshape(-1)
+    outer = [_circumscribed(float(r), quad_segs) for r in radii]
+    return list(shapely.buffer(shapely.points(centres), outer, quad_segs=quad_segs))
+
+
+def merge(polygons: Sequence[Polygon]) -> list[Polygon]:
+    """The polygons with overlapping ones merged."""
+    merged = shapely.union_all(list(polygons))
     if isinstance(merged, Polygon):
         return [merged]
     if isinstance(merged, MultiPolygon):
         return list(merged.geoms)
     return [g for g in getattr(merged, 'geoms', []) if isinstance(g, Polygon)]
+
+
+def _circumscribed(radius: float, quad_segs: int) -> float:
+    """R = r / cos(pi / 4q): the chords of a buffer by R are tangent to the circle of r."""
+    return radius / math.cos(math.pi / (4 * quad_segs)) if radius > 0 else 0.0
 
 
 def free_space(workspace: Polygon, obstacles: Sequence[Polygon], radius: float) -> Polygon:

@@ -99,6 +99,10 @@ class SetpointParams:
         'speed this long, gives way, s (0: never)', low=0.0, high=600.0, live=True)
     give_way_s: float = tunable(5.0, 'How long a held robot gives way (keeps yield_margin), s',
                                 low=0.0, high=600.0, live=True)
+    detour_after_s: float = tunable(
+        0.0, 'A robot two radii or more from its goal, held below a quarter of its setpoint '
+        'speed this long, goes round the robots round it, s (0: never)', low=0.0,
+        high=600.0, live=True)
 
     def __post_init__(self) -> None:
         for name in ('gain', 'v_max', 'avoid_rate'):
@@ -162,9 +166,7 @@ class GiveWay:
         if self.params.give_way_after_s <= 0.0 or self.active(t):
             self._blocked_since = None
             return
-        wanted = float(np.hypot(*setpoint))
-        if (wanted == 0.0 or to_goal >= self.near_goal_m
-                or float(np.hypot(*command)) >= 0.25 * wanted):
+        if to_goal >= self.near_goal_m or not held(setpoint, command):
             self._blocked_since = None
         elif self._blocked_since is None:
             self._blocked_since = t
@@ -173,6 +175,13 @@ class GiveWay:
             self._blocked_since = None
             self._giving = True
             self.count += 1
+
+
+def held(setpoint, command) -> bool:
+    """Whether the filter holds a robot: its command (m/s) slower than a quarter of its
+    setpoint's speed, the setpoint not zero (``GiveWay``, ``detour.Detour``)."""
+    wanted = float(np.hypot(*setpoint))
+    return wanted > 0.0 and float(np.hypot(*command)) < 0.25 * wanted
 
 
 def tracking_lag_s(fluid_friction: float, gains: LqrGains) -> float:
