@@ -148,6 +148,11 @@ if [ ! -f "$WS/install/setup.bash" ] || [ "$(cat "$STAMP_WS" 2>/dev/null)" != "$
       fi
     fi
   )
+  # numba caches the kernels' machine code beside the sources: compile them once here,
+  # not in the first processes of every run (swarm_eval.warm_kernels).
+  say "compiling the kernels for this machine"
+  "$ROOT/scripts/env.sh" python -m swarm_eval.warm_kernels \
+    || say "the kernels were not compiled now; each process compiles the ones it calls"
   echo "$WANT_WS" >"$STAMP_WS"
   echo "$WANT_IFACES" >"$STAMP_IFACES"
 fi

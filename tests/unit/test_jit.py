@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import os
+import pathlib
 import subprocess
 import sys
 
@@ -122,3 +123,16 @@ def test_the_compiled_filter_gives_what_its_source_gives(v, offsets, radius, lag
     np.testing.assert_allclose(compiled, python, rtol=1e-12, atol=1e-12)
     if np.hypot(*v) <= params.v_max:
         assert np.hypot(*compiled) <= params.v_max * (1 + 1e-12)
+
+
+def test_warm_kernels_compiles_every_kernel_of_the_packages():
+    """``make bootstrap``'s step (swarm_eval.warm_kernels), in a fresh process: it
+    imports every module that defines a kernel and compiles each one, so no process of
+    a fresh install compiles at its first call."""
+    src = pathlib.Path(__file__).resolve().parents[2] / 'ros2_ws' / 'src'
+    decorated = sum(p.read_text(encoding='utf-8').count('\n@kernel(')
+                    for p in src.glob('swarm_*/swarm_*/**/*.py'))
+    result = _run('import sys; from swarm_eval.warm_kernels import main; sys.exit(main())')
+    assert result.returncode == 0, result.stderr
+    assert f'warm_kernels: {decorated} of {decorated} kernels compiled' in result.stdout
+    assert decorated >= 12

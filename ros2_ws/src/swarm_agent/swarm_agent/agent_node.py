@@ -93,6 +93,7 @@ from swarm_agent.packet import Packet
 from swarm_agent.route_table import RouteStore
 from swarm_common import qos
 from swarm_common.conversions import goals_from_msg, shape_from_msg
+from swarm_common.jit import warm
 from swarm_common.parameters import ParameterError, set_live, spec_table
 from swarm_common.ros_parameters import declare
 from swarm_common.ros_support import lean_publisher, lean_subscription, run_node
@@ -320,6 +321,11 @@ class AgentNode(Node):
             lean_subscription(self, FormationShape, 'swarm/shape', self.on_shape, latched)
             lean_subscription(self, GoalArray, 'swarm/goals', self.on_goals, latched)
 
+        # Every kernel compiled (or loaded from numba's cache) before the first step: compiled
+        # at its first call instead, each took its robot's control loop away for up to
+        # seconds mid-run, and five agents compiling at once starved the emulated world
+        # of the hardware-in-the-loop demo for 10 s. A no-op once warm (composed_node).
+        warm()
         if own_timers:
             self.create_timer(1.0 / p['control_rate_hz'], self.on_control)
             self.create_timer(1.0 / p['state_rate_hz'], self.publish_state)

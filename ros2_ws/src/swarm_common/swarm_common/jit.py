@@ -158,6 +158,11 @@ def compiled() -> bool:
     return not _python and bool(_load_numba())
 
 
+def registered() -> int:
+    """How many kernels the imported modules registered."""
+    return len(_kernels)
+
+
 def warm() -> int:
     """Compile (or load from the cache) every kernel registered so far on its example
     arguments; returns how many run compiled."""
