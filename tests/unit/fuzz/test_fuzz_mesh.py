@@ -67,7 +67,7 @@ def test_adverts_round_trip_in_frames_of_one_payload(sequence, items):
         assert len(frame) <= MAX_PAYLOAD
         seq, part = wire.decode_adverts(frame)
         assert seq == sequence
-        decoded += part
+        decoded += map(tuple, part.tolist())
     assert decoded == items
 
 
