@@ -95,7 +95,9 @@ def test_receivers_that_knew_different_neighbour_sets_each_learn_their_own():
     """One dump heard by routers that knew the sender's neighbours differently (the
     receivers of a frame share one result per set they knew): each ends with what it knew
     plus the one-hop adverts less the others; a receiver whose knowledge did not change
-    keeps its relay decisions, one whose knowledge changed renews them."""
+    keeps its relay decisions, one whose knowledge of the lower-id sender changed renews
+    the one after the sender (the coverage condition reads no other decision's), one
+    that learnt of the sender for the first time renews them all."""
     from swarm_agent.wire import Advert, encode_adverts
 
     routers = [DsdvRouter(i) for i in (1, 2, 4, 5)]
@@ -105,13 +107,13 @@ def test_receivers_that_knew_different_neighbour_sets_each_learn_their_own():
     for router, known in zip(routers, knew):
         if known is not None:
             router.two_hop[3] = known
-        router._silent_after[7] = True               # a relay decision held
+        router._silent_after.update({3: True, 7: True})   # relay decisions held
     frame = encode_adverts(10, [Advert(3, 0, 10), Advert(5, 1, 4), Advert(6, 1, 8),
                                 Advert(9, 2, 2)])[0]
     hear(1.0, Packet(3, BROADCAST, int(Kind.DSDV_FULL), 1, 1, frame), routers)
     assert [r.two_hop[3] for r in routers] == [{5, 6}, {5, 6}, {5, 6, 8}, {5, 6}]
     assert routers[0].two_hop[3] is knew[0]          # unchanged: the same set
-    assert [bool(r._silent_after) for r in routers] == [True, True, False, False]
+    assert [set(r._silent_after) for r in routers] == [{3, 7}, {3, 7}, {7}, set()]
 
 
 def test_receivers_that_heard_a_dump_before_learn_again_after_any_change():

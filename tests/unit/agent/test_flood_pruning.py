@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from test_dsdv import ITERATION, Net  # the same deterministic network loop
 
+from swarm_agent import flood_relay
 from swarm_agent.dsdv import DsdvConfig
 from swarm_agent.packet import Kind
 
@@ -170,3 +171,36 @@ def test_the_coverage_condition_as_bit_masks_is_the_condition():
         assert covered(prev, neighbours, two_hop, higher) == expected
         answers.append(expected)
     assert 0.05 < np.mean(answers) < 0.95
+
+
+def test_kept_relay_decisions_are_those_of_the_current_view():
+    """A router keeps its relay decision per previous hop until its view changes; a
+    change in what it knows of a lower-id neighbour's neighbours renews only the
+    decision after that neighbour (``DsdvRouter._neighbourhood_changed``). On a random
+    geometric graph whose links come and go while floods run, every decision a router
+    holds equals the coverage condition on its view as it is then."""
+    rng = np.random.default_rng(12)
+    n = 30
+    pts = rng.uniform(0.0, 50.0, size=(n, 2))
+    edges = [(a, b) for a, b in itertools.combinations(range(n), 2)
+             if np.hypot(*(pts[a] - pts[b])) < 18.0]
+    net = Net(range(n), edges, DsdvConfig(**{**ITERATION.__dict__,
+                                             'flood_extra_copies': 0.0}))
+    t = _converge(net, 12)
+    checked = 0
+    for step in range(40):
+        for _ in range(3):
+            a, b = (int(x) for x in rng.choice(n, 2, replace=False))
+            (net.link if rng.random() < 0.5 else net.unlink)(a, b)
+        net.step(t)
+        _flood(net, t, int(rng.integers(n)), f'flood {step}'.encode())
+        t += 1.0
+        for r in net.routers.values():
+            view = r._neighbours()
+            higher = [z for z in view if z > r.id and z in r.two_hop]
+            for previous, silent in r._silent_after.items():
+                fresh = flood_relay.covered(previous, flood_relay.mask(view), r.two_hop,
+                                            flood_relay.mask(higher))
+                assert silent == fresh, (step, r.id, previous)
+                checked += 1
+    assert checked > 1000

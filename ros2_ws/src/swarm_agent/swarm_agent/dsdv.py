@@ -138,6 +138,7 @@ class DsdvRouter:
         self._silent_after: dict[int, bool] = {}  # previous hop -> stay silent?
         self._view_masks: tuple[int, int] | None = None   # _should_relay's, per view
         self._view: set[int] | None = None        # the neighbours, kept until they change
+        self._known_grew = False   # two_hop has a neighbour more than the view's masks saw
         self._info: bytes | Callable[[], bytes] = b''
         self._tx_seq = 0
         self._flood_id = 0
@@ -314,6 +315,17 @@ class DsdvRouter:
         self._silent_after.clear()
         self._view_masks = None
         self._view = None
+        self._known_grew = False
+
+    def _neighbourhood_changed(self, neighbour: int) -> None:
+        """What this node knows of ``neighbour``'s neighbours changed, not its own
+        neighbours. ``flood_relay.covered`` reads the previous hop's neighbourhood and
+        those of higher-id neighbours only, so the change of a lower-id neighbour's
+        renews the one decision after a flood from it; any other renews all."""
+        if neighbour > self.id or self._known_grew:
+            self._view_changed()
+        else:
+            self._silent_after.pop(neighbour, None)
 
     def _should_relay(self, previous_hop: int, origin: int, flood_id: int) -> bool:
         """Relay unless the coverage condition (``flood_relay``) lets this node be silent."""

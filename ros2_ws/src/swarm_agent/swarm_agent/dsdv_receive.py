@@ -320,6 +320,7 @@ def _learn_neighbourhood(routers: Sequence[DsdvRouter], neighbour: int, ones: fr
         known = two_hop.get(neighbour)
         if known is None:
             known = two_hop[neighbour] = _NO_NEIGHBOURS
+            r._known_grew = True     # its relay decisions' higher-id set may grow
             edits += 1
         if known is not seen:
             seen = known
@@ -330,7 +331,7 @@ def _learn_neighbourhood(routers: Sequence[DsdvRouter], neighbour: int, ones: fr
                 outcome[id(known)] = (known, learnt)
         if learnt is not known:
             two_hop[neighbour] = learnt
-            r._view_changed()
+            r._neighbourhood_changed(neighbour)
             edits += 1
     _EDITS[neighbour] = edits
     if len(_LEARNT) >= _LEARNT_LIMIT:
