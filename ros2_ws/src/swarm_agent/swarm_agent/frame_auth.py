@@ -204,14 +204,16 @@ _ONE = np.uint64(1)
 @kernel(np.zeros((1, 1, 2), dtype=np.uint64), np.zeros(1, dtype=np.int64), 0,
         np.uint64(5), np.uint64(64), np.uint64(COUNTER_MASK))
 def _accept(cells: np.ndarray, rows: np.ndarray, col: int, counter: np.uint64,
-            size: np.uint64, full: np.uint64) -> np.ndarray:
+            size: np.uint64, full: np.uint64) -> tuple[np.ndarray, int]:
     """The replay window (RFC 4303 3.4.3) of each receiver of ``rows`` for one frame of
-    the source in column ``col``: 0 accepted (and recorded), 1 a replay, 2 too old.
+    the source in column ``col``: 0 accepted (and recorded), 1 a replay, 2 too old; and
+    how many were not accepted (most frames: none, known without a pass in Python).
 
     A counter above the highest moves the window; one inside it is accepted once; one
     below it is too old. All in unsigned 64-bit arithmetic, as the counters are.
     """
     verdict = np.zeros(rows.shape[0], dtype=np.int8)
+    refused = 0
     for i in range(rows.shape[0]):
         cell = cells[rows[i], col]
         top, bits = cell[0], cell[1]
@@ -223,11 +225,13 @@ def _accept(cells: np.ndarray, rows: np.ndarray, col: int, counter: np.uint64,
         offset = top - counter
         if offset >= size:
             verdict[i] = 2
+            refused += 1
         elif (bits >> offset) & _ONE:
             verdict[i] = 1
+            refused += 1
         else:
             cell[1] = bits | (_ONE << offset)
-    return verdict
+    return verdict, refused
 
 
 class _Verifier:
@@ -357,9 +361,9 @@ def open_all(auths: Sequence[FrameAuth], packet: Packet,
         opened, counter = result
         store = auth.store
         col = store.column_of(packet.source)     # may grow the cells: before reading them
-        verdicts = _accept(store.cells, rows, col, np.uint64(counter), auth._size,
-                           auth._full)
-        if len(group) == len(auths) and not verdicts.any():
+        verdicts, refused = _accept(store.cells, rows, col, np.uint64(counter), auth._size,
+                                    auth._full)
+        if not refused and len(group) == len(auths):
             return [opened] * len(auths)     # one keyring, every window took it
         for i, verdict in zip(group, verdicts.tolist()):
             if verdict:
