@@ -323,8 +323,9 @@ class AgentNode(Node):
 
         # Every kernel compiled (or loaded from numba's cache) before the first step: compiled
         # at its first call instead, each took its robot's control loop away for up to
-        # seconds mid-run, and five agents compiling at once starved the emulated world
-        # of the hardware-in-the-loop demo for 10 s. A no-op once warm (composed_node).
+        # seconds mid-run, and five agents compiling at once (numba's cache cold) left the
+        # emulated world of the hardware-in-the-loop demo without CPU for 3-6 s. A no-op
+        # once warm (composed_node, the launcher's forked agents).
         warm()
         if own_timers:
             self.create_timer(1.0 / p['control_rate_hz'], self.on_control)

@@ -12,7 +12,7 @@ gap between their covers 19 cm. Giving way (``setpoint.GiveWay``) is for robots 
 their goals and opens a few centimetres, not the 3 cm this robot lacked plus its path
 round.
 
-:class:`Detour` therefore plans that robot's way round: held (``setpoint.held``) for
+:class:`Detour` therefore plans that robot's way round: held (``setpoint.HeldClock``) for
 ``detour_after_s`` two radii or more from its goal, it follows the shortest path
 (visibility graph and Dijkstra, ``costs.VisibilityGraph``, as its cost rows) among the
 shape's grown obstacles and the discs of its neighbours, each grown by its own cover
@@ -35,7 +35,7 @@ from shapely.geometry import Polygon
 
 from swarm_agent.costs import VisibilityGraph
 from swarm_agent.free_space import grow_discs, merge
-from swarm_agent.setpoint import GiveWay, held, SetpointParams
+from swarm_agent.setpoint import GiveWay, HeldClock, SetpointParams
 
 
 class Detour:
@@ -45,20 +45,17 @@ class Detour:
         self.params = params
         self.radius = float(radius)
         self.far_m = GiveWay.NEAR_GOAL_RADII * self.radius    # nearer, it gives way
-        self._held_since: float | None = None
+        self._held = HeldClock()
         self.active = False
         self.count = 0                      # detours so far
 
     def observe(self, t: float, setpoint, command, to_goal: float) -> None:
         """The command the filter gave at ``t`` for ``setpoint`` (m/s each), the robot
         ``to_goal`` m from its goal (inf: none, e.g. returning home)."""
-        if (self.params.detour_after_s <= 0.0 or self.active or to_goal < self.far_m
-                or not held(setpoint, command)):
-            self._held_since = None
-        elif self._held_since is None:
-            self._held_since = t
-        elif t - self._held_since >= self.params.detour_after_s:
-            self._held_since = None
+        if self.params.detour_after_s <= 0.0 or self.active:
+            self._held.reset()
+        elif self._held.held_for(t, setpoint, command, self.params.detour_after_s,
+                                 to_goal >= self.far_m):
             self.active = True
             self.count += 1
 
@@ -74,10 +71,9 @@ class Detour:
         offsets = np.asarray(offsets, dtype=float).reshape(-1, 2)
         discs = grow_discs(position + offsets, np.asarray(radii, dtype=float) + self.radius)
         graph = VisibilityGraph(merge(list(obstacles) + discs))
-        _, escape = graph.escape(position)
-        path = graph.path(position, target)
-        # [position, (escape point,) target]: nothing in the way, or no way round.
-        if len(path) <= (3 if escape > 0.0 else 2):
+        start, escape = graph.escape(position)    # out of a disc it touches, if in one
+        path = graph.path(start, target)
+        if len(path) <= 2:     # [start, target]: nothing in the way, or no way round
             self.active = False
             return None
-        return path
+        return np.vstack([position, path]) if escape > 0.0 else path

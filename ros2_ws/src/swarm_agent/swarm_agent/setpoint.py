@@ -144,7 +144,7 @@ class GiveWay:
     def __init__(self, params: SetpointParams, radius: float) -> None:
         self.params = params
         self.near_goal_m = self.NEAR_GOAL_RADII * radius
-        self._blocked_since: float | None = None
+        self._held = HeldClock()
         self._until = -np.inf
         self._giving = False
         self.count = 0                      # give-ways so far
@@ -164,24 +164,39 @@ class GiveWay:
         """The command the filter gave at ``t`` for ``setpoint`` (m/s each), the robot
         ``to_goal`` m from its goal (inf: none)."""
         if self.params.give_way_after_s <= 0.0 or self.active(t):
-            self._blocked_since = None
-            return
-        if to_goal >= self.near_goal_m or not held(setpoint, command):
-            self._blocked_since = None
-        elif self._blocked_since is None:
-            self._blocked_since = t
-        elif t - self._blocked_since >= self.params.give_way_after_s:
+            self._held.reset()
+        elif self._held.held_for(t, setpoint, command, self.params.give_way_after_s,
+                                 to_goal < self.near_goal_m):
             self._until = t + self.params.give_way_s
-            self._blocked_since = None
             self._giving = True
             self.count += 1
 
 
-def held(setpoint, command) -> bool:
-    """Whether the filter holds a robot: its command (m/s) slower than a quarter of its
-    setpoint's speed, the setpoint not zero (``GiveWay``, ``detour.Detour``)."""
-    wanted = float(np.hypot(*setpoint))
-    return wanted > 0.0 and float(np.hypot(*command)) < 0.25 * wanted
+class HeldClock:
+    """How long in a row the collision filter has held a robot: its command slower than a
+    quarter of its setpoint's speed, the setpoint not zero (``GiveWay``, ``detour.Detour``:
+    the same clock, for robots near their goals and far from them)."""
+
+    def __init__(self) -> None:
+        self._since: float | None = None     # first call of the hold (s)
+
+    def reset(self) -> None:
+        self._since = None
+
+    def held_for(self, t: float, setpoint, command, after_s: float,
+                 applies: bool = True) -> bool:
+        """Whether the robot, given ``command`` for ``setpoint`` (m/s each) at ``t``, has
+        been held since a call ``after_s`` or more before (the clock then starts again);
+        ``applies`` False (the robot outside the rule's reach) counts as not held."""
+        wanted = float(np.hypot(*setpoint))
+        if not (applies and wanted > 0.0 and float(np.hypot(*command)) < 0.25 * wanted):
+            self._since = None
+        elif self._since is None:
+            self._since = t
+        elif t - self._since >= after_s:
+            self._since = None
+            return True
+        return False
 
 
 def tracking_lag_s(fluid_friction: float, gains: LqrGains) -> float:
